@@ -1,0 +1,31 @@
+//! `deepcontact`: simulate the thesis scenes, compare warm starts, and more.
+
+mod common;
+mod simulate;
+
+use clap::{Parser, Subcommand};
+
+/// 2D rigid-body contacts solved iteratively, with pluggable warm starts.
+#[derive(Debug, Parser)]
+#[command(name = "deepcontact", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Run one scene with one warm start and report every step.
+    Simulate(simulate::SimulateArgs),
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Simulate(args) => simulate::run(args),
+    };
+    if let Err(e) = result {
+        eprintln!("error: {e}");
+        std::process::exit(1);
+    }
+}

@@ -1,0 +1,49 @@
+//! # deepcontact-core
+//!
+//! The foundation of deepcontact: rigid bodies and shapes (through parry2d), a
+//! Box2D-style world that steps them, contact ids with impulse persistence,
+//! islands, the solver-facing [`ContactProblem`], and the two plug-in traits
+//! the project is built around:
+//!
+//! * [`WarmStart`] — supplies the first iterate of the velocity solver;
+//! * [`VelocitySolver`] (and [`PositionSolver`]) — solve a contact problem.
+//!
+//! One step of a [`World`] runs, in order: integrate velocities → broad phase →
+//! narrow phase (with impulses carried over by [`ContactId`]) → islands → per
+//! island: build the [`ContactProblem`], warm start, velocity solve, observe →
+//! integrate positions → position pass → [`StepReport`].
+//!
+//! All public math uses [`nalgebra`] with [`Real`] = `f64`; parry2d's glam
+//! types are confined to the [`math`] module.
+#![warn(missing_docs)]
+
+pub mod body;
+pub mod broad_phase;
+pub mod contact;
+pub mod error;
+pub mod island;
+pub mod math;
+pub mod narrow_phase;
+pub mod problem;
+pub mod report;
+pub mod rng;
+pub mod scene;
+pub mod shape;
+pub mod solver;
+pub mod warm_start;
+pub mod world;
+
+pub use body::{Body, BodyDesc, BodyHandle, BodyKind, Material};
+pub use contact::{ContactId, Impulse};
+pub use error::CoreError;
+pub use math::{Real, Vector};
+pub use problem::{ContactPoint, ContactProblem, ProblemBody};
+pub use report::{SolveReport, StepReport};
+pub use shape::ShapeDesc;
+pub use solver::{
+    PositionReport, PositionSettings, PositionSolver, ResidualNorm, SolverSettings, VelocitySolver,
+};
+pub use warm_start::{
+    CarriedWarmStart, GuardPolicy, WarmStart, WarmStartContext, WarmStartError, ZeroWarmStart,
+};
+pub use world::{World, WorldSettings};

@@ -1,0 +1,89 @@
+//! Reports of one solve and one step.
+
+use crate::math::Real;
+
+/// What a velocity solve did.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SolveReport {
+    /// Iterations run.
+    pub iterations: u32,
+    /// Per iteration, `max |Δλ|` over all rows after clamping.
+    pub residual_inf: Vec<Real>,
+    /// Per iteration, `sqrt(Σ Δλ²)` over all rows after clamping.
+    pub residual_l2: Vec<Real>,
+    /// Natural-map residual of the final impulses: `max |λ − proj(λ − m_eff (v − bias))|`
+    /// over all rows (the change one more Jacobi sweep would make), in N·s.
+    pub natural_residual: Real,
+    /// Whether the stop rule was met (false = the cap was hit).
+    pub converged: bool,
+    /// Wall time of the solve in seconds.
+    pub seconds: Real,
+}
+
+impl SolveReport {
+    /// Resets the report for a new solve, keeping allocations.
+    pub fn clear(&mut self) {
+        self.iterations = 0;
+        self.residual_inf.clear();
+        self.residual_l2.clear();
+        self.natural_residual = 0.0;
+        self.converged = false;
+        self.seconds = 0.0;
+    }
+
+    /// Last ∞-norm residual (0 if no iteration ran).
+    pub fn final_residual(&self) -> Real {
+        self.residual_inf.last().copied().unwrap_or(0.0)
+    }
+}
+
+/// What one world step did. Serialisable to JSON for scripts.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct StepReport {
+    /// Index of the step (0 = the first step of the world).
+    pub step: u64,
+    /// Contact points solved.
+    pub contacts: usize,
+    /// Islands with contacts.
+    pub islands: usize,
+    /// Velocity iterations of the slowest island.
+    pub velocity_iterations: u32,
+    /// Velocity iterations summed over islands.
+    pub velocity_iterations_sum: u64,
+    /// Islands that hit the iteration cap.
+    pub capped_islands: usize,
+    /// Per iteration, the ∞-norm residual: max over the islands still iterating.
+    pub residual_curve: Vec<Real>,
+    /// Same with the 2-norm (root of the sum of squares over those islands).
+    pub residual_curve_l2: Vec<Real>,
+    /// Largest natural-map residual over islands after the solve.
+    pub natural_residual: Real,
+    /// Mean squared difference between warm start and final impulse, normal rows.
+    pub mse_normal: Real,
+    /// Same, tangent rows.
+    pub mse_tangent: Real,
+    /// Islands whose warm start was rejected and replaced by zeros.
+    pub fallbacks: usize,
+    /// Position iterations of the slowest island.
+    pub position_iterations: u32,
+    /// Smallest separation after the position pass (0 without contacts).
+    pub min_separation: Real,
+    /// Seconds spent in the warm-start provider.
+    pub warm_start_seconds: Real,
+    /// Seconds spent in the velocity solver.
+    pub solve_seconds: Real,
+    /// Seconds of the whole step.
+    pub step_seconds: Real,
+}
+
+impl StepReport {
+    /// Seconds of the step outside warm start and velocity solve.
+    pub fn rest_seconds(&self) -> Real {
+        (self.step_seconds - self.warm_start_seconds - self.solve_seconds).max(0.0)
+    }
+
+    /// Residual at the end of the step's velocity solve (last value of the curve).
+    pub fn final_residual(&self) -> Real {
+        self.residual_curve.last().copied().unwrap_or(0.0)
+    }
+}

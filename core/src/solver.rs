@@ -1,0 +1,212 @@
+//! Solver traits and settings.
+
+use crate::contact::Impulse;
+use crate::error::CoreError;
+use crate::math::{Real, Vector};
+use crate::problem::ContactProblem;
+use crate::report::SolveReport;
+
+/// Which norm of the per-iteration impulse change the stop rule uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ResidualNorm {
+    /// `max |Δλ|` over all rows (default; what the thesis text describes).
+    #[default]
+    Infinity,
+    /// `sqrt(Σ Δλ²)` over all rows (closer to what the original code measured).
+    L2,
+}
+
+/// Stop rule of a velocity solve.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SolverSettings {
+    /// Iteration cap (default 1000, the thesis's cap). Must be ≥ 1.
+    pub max_iterations: u32,
+    /// Stop when the chosen norm of the impulse change is below this (default 1e-4). ≥ 0;
+    /// 0 means "always run to the cap".
+    pub tolerance: Real,
+    /// Norm for the stop rule (default ∞).
+    pub norm: ResidualNorm,
+    /// Iterations always run before the stop rule is checked (default 1, at least 1).
+    pub min_iterations: u32,
+}
+
+impl Default for SolverSettings {
+    fn default() -> Self {
+        Self { max_iterations: 1000, tolerance: 1e-4, norm: ResidualNorm::Infinity, min_iterations: 1 }
+    }
+}
+
+impl SolverSettings {
+    /// Rejects a zero cap, a negative or non-finite tolerance, or `min_iterations` = 0.
+    pub fn validate(&self) -> Result<(), CoreError> {
+        if self.max_iterations == 0 {
+            return Err(CoreError::InvalidSetting { name: "max_iterations", value: 0.0, reason: "must be >= 1" });
+        }
+        if self.min_iterations == 0 {
+            return Err(CoreError::InvalidSetting { name: "min_iterations", value: 0.0, reason: "must be >= 1" });
+        }
+        if !(self.tolerance.is_finite() && self.tolerance >= 0.0) {
+            return Err(CoreError::InvalidSetting {
+                name: "tolerance",
+                value: self.tolerance,
+                reason: "must be finite and >= 0",
+            });
+        }
+        Ok(())
+    }
+
+    /// Whether a solve that has run `iteration` iterations (1-based) with these residuals may stop.
+    #[inline]
+    pub fn converged(&self, iteration: u32, residual_inf: Real, residual_l2: Real) -> bool {
+        let r = match self.norm {
+            ResidualNorm::Infinity => residual_inf,
+            ResidualNorm::L2 => residual_l2,
+        };
+        iteration >= self.min_iterations && r < self.tolerance
+    }
+}
+
+/// Solves the velocity-level contact problem of one island.
+///
+/// The solver starts from `impulses` (the warm start, one per point), applies them to the
+/// free velocities, iterates under `settings`, and leaves the final impulses in `impulses`
+/// and the final body velocities in `velocities` (one per body of the problem).
+/// Object safe; implementations reuse their internal buffers between calls.
+pub trait VelocitySolver: Send {
+    /// Short name used in reports (`"pgs"`, `"psor"`, ...).
+    fn name(&self) -> &str;
+
+    /// Solves `problem` from the start in `impulses`.
+    fn solve(
+        &mut self,
+        problem: &ContactProblem,
+        settings: &SolverSettings,
+        impulses: &mut [Impulse],
+        velocities: &mut [(Vector, Real)],
+        report: &mut SolveReport,
+    ) -> Result<(), CoreError>;
+}
+
+impl<S: VelocitySolver + ?Sized> VelocitySolver for Box<S> {
+    fn name(&self) -> &str {
+        (**self).name()
+    }
+    fn solve(
+        &mut self,
+        problem: &ContactProblem,
+        settings: &SolverSettings,
+        impulses: &mut [Impulse],
+        velocities: &mut [(Vector, Real)],
+        report: &mut SolveReport,
+    ) -> Result<(), CoreError> {
+        (**self).solve(problem, settings, impulses, velocities, report)
+    }
+}
+
+/// Settings of the position pass (Box2D v2.4 non-linear Gauss-Seidel).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PositionSettings {
+    /// Iteration cap (default 250).
+    pub max_iterations: u32,
+    /// Stop when the largest correction is below this (default 1e-4 m)...
+    pub tolerance: Real,
+    /// ...and the deepest penetration is within `penetration_factor × linear_slop` (default 3).
+    pub penetration_factor: Real,
+    /// Fraction of the overlap removed per iteration (default 0.2).
+    pub baumgarte: Real,
+    /// Penetration allowed without correction (default 0.0005 m, the original code's value).
+    pub linear_slop: Real,
+    /// Largest correction per point per iteration (default 0.2 m).
+    pub max_linear_correction: Real,
+}
+
+impl Default for PositionSettings {
+    fn default() -> Self {
+        Self {
+            max_iterations: 250,
+            tolerance: 1e-4,
+            penetration_factor: 3.0,
+            baumgarte: 0.2,
+            linear_slop: 0.0005,
+            max_linear_correction: 0.2,
+        }
+    }
+}
+
+impl PositionSettings {
+    /// Rejects out-of-range values.
+    pub fn validate(&self) -> Result<(), CoreError> {
+        let check = |name, value: Real, ok: bool, reason| {
+            if ok { Ok(()) } else { Err(CoreError::InvalidSetting { name, value, reason }) }
+        };
+        check(
+            "position.tolerance",
+            self.tolerance,
+            self.tolerance.is_finite() && self.tolerance >= 0.0,
+            "must be finite and >= 0",
+        )?;
+        check("position.baumgarte", self.baumgarte, self.baumgarte > 0.0 && self.baumgarte <= 1.0, "must be in (0, 1]")?;
+        check(
+            "position.linear_slop",
+            self.linear_slop,
+            self.linear_slop.is_finite() && self.linear_slop >= 0.0,
+            "must be finite and >= 0",
+        )?;
+        check(
+            "position.max_linear_correction",
+            self.max_linear_correction,
+            self.max_linear_correction.is_finite() && self.max_linear_correction > 0.0,
+            "must be finite and > 0",
+        )?;
+        check(
+            "position.penetration_factor",
+            self.penetration_factor,
+            self.penetration_factor.is_finite() && self.penetration_factor >= 0.0,
+            "must be finite and >= 0",
+        )
+    }
+}
+
+/// Outcome of a position pass.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PositionReport {
+    /// Iterations run (0 if there was nothing to do).
+    pub iterations: u32,
+    /// Smallest separation seen in the last iteration (negative = penetration).
+    pub min_separation: Real,
+    /// Largest correction applied in the last iteration.
+    pub max_correction: Real,
+}
+
+/// Removes overlap by moving positions directly (not warm-started).
+///
+/// `poses` holds `(centre of mass, angle)` of each body of `problem` after the position
+/// integration; the pass updates them in place. The problem's `position`/`angle` fields are
+/// the poses at which the contacts were computed, so separations can be updated from the
+/// displacement since then.
+pub trait PositionSolver: Send {
+    /// Short name.
+    fn name(&self) -> &str;
+
+    /// Runs the position pass.
+    fn solve_positions(
+        &mut self,
+        problem: &ContactProblem,
+        settings: &PositionSettings,
+        poses: &mut [(Vector, Real)],
+    ) -> Result<PositionReport, CoreError>;
+}
+
+impl<S: PositionSolver + ?Sized> PositionSolver for Box<S> {
+    fn name(&self) -> &str {
+        (**self).name()
+    }
+    fn solve_positions(
+        &mut self,
+        problem: &ContactProblem,
+        settings: &PositionSettings,
+        poses: &mut [(Vector, Real)],
+    ) -> Result<PositionReport, CoreError> {
+        (**self).solve_positions(problem, settings, poses)
+    }
+}

@@ -1,0 +1,187 @@
+//! The [`WarmStart`] plug-in point: the first iterate of the velocity solver.
+
+use crate::contact::Impulse;
+use crate::math::Real;
+use crate::problem::ContactProblem;
+
+/// What a provider sees when asked for a warm start. Borrowed, so new data can be
+/// added as new fields without changing the trait's signature.
+#[derive(Debug, Clone, Copy)]
+#[non_exhaustive]
+pub struct WarmStartContext<'a> {
+    /// The island's contact problem (bodies, points, manifolds).
+    pub problem: &'a ContactProblem,
+    /// Impulses carried over from the previous step by [`ContactId`](crate::ContactId),
+    /// one per point of `problem` (zero where the point is new).
+    pub carried: &'a [Impulse],
+    /// Whether each point matched a point of the previous step.
+    pub persisted: &'a [bool],
+    /// Index of the step being solved (the first step of a world is 0).
+    pub step: u64,
+    /// Index of the island within the step (islands are ordered by their smallest body).
+    pub island: usize,
+    /// Number of islands in this step.
+    pub island_count: usize,
+    /// Time step in seconds.
+    pub dt: Real,
+    /// The world being stepped, if the problem comes from one (`None` for hand-built problems).
+    pub world: Option<&'a crate::World>,
+}
+
+impl<'a> WarmStartContext<'a> {
+    /// A context for a problem without a world (hand-built problems, tests, foreign engines).
+    pub fn new(problem: &'a ContactProblem, carried: &'a [Impulse], persisted: &'a [bool], step: u64, dt: Real) -> Self {
+        Self { problem, carried, persisted, step, island: 0, island_count: 1, dt, world: None }
+    }
+
+    /// Attaches the world and island position (used by [`World::step`](crate::World::step)).
+    pub fn with_world(mut self, world: &'a crate::World, island: usize, island_count: usize) -> Self {
+        self.world = Some(world);
+        self.island = island;
+        self.island_count = island_count;
+        self
+    }
+}
+
+/// Why a warm start could not be used.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum WarmStartError {
+    /// The provider wrote a NaN or infinite value.
+    #[error("non-finite impulse ({normal}, {tangent}) at point {point}")]
+    NonFinite {
+        /// Point index.
+        point: usize,
+        /// Normal value written.
+        normal: Real,
+        /// Tangent value written.
+        tangent: Real,
+    },
+    /// The provider wrote a negative normal impulse.
+    #[error("negative normal impulse {normal} at point {point}")]
+    NegativeNormal {
+        /// Point index.
+        point: usize,
+        /// Normal value written.
+        normal: Real,
+    },
+    /// The provider produced the wrong number of impulses.
+    #[error("provider produced {got} impulses for {expected} contact points")]
+    WrongLength {
+        /// Number of points.
+        expected: usize,
+        /// Number produced.
+        got: usize,
+    },
+    /// The provider itself failed (model error, solver error, ...).
+    #[error("provider failure: {0}")]
+    Provider(String),
+}
+
+/// Checks a provider's output: finite everywhere, normal ≥ 0.
+pub fn check_output(out: &[Impulse], expected: usize) -> Result<(), WarmStartError> {
+    if out.len() != expected {
+        return Err(WarmStartError::WrongLength { expected, got: out.len() });
+    }
+    for (point, imp) in out.iter().enumerate() {
+        if !imp.is_finite() {
+            return Err(WarmStartError::NonFinite { point, normal: imp.normal, tangent: imp.tangent });
+        }
+        if imp.normal < 0.0 {
+            return Err(WarmStartError::NegativeNormal { point, normal: imp.normal });
+        }
+    }
+    Ok(())
+}
+
+/// What the world does when a provider fails or writes garbage.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum GuardPolicy {
+    /// Start that island from zeros and count it in [`StepReport::fallbacks`](crate::StepReport::fallbacks) (default).
+    #[default]
+    FallbackToZero,
+    /// Abort the step with [`CoreError::WarmStart`](crate::CoreError::WarmStart).
+    Error,
+}
+
+/// Supplies the initial impulses of the velocity solver.
+///
+/// Object safe: use it as `Box<dyn WarmStart>` or generically. Implementors
+/// write one [`Impulse`] per contact point of `ctx.problem` into `out` (which
+/// arrives zeroed, so doing nothing is a cold start) and may learn from the
+/// solved impulses in [`WarmStart::observe`].
+///
+/// ```
+/// use deepcontact_core::{Impulse, WarmStart, WarmStartContext, WarmStartError};
+///
+/// /// Last step's impulses, damped: a typical first experiment.
+/// struct Scaled(f64);
+///
+/// impl WarmStart for Scaled {
+///     fn name(&self) -> &str { "scaled" }
+///     fn warm_start(&mut self, ctx: &WarmStartContext<'_>, out: &mut [Impulse]) -> Result<(), WarmStartError> {
+///         for (o, c) in out.iter_mut().zip(ctx.carried) {
+///             *o = Impulse::new(self.0 * c.normal, self.0 * c.tangent);
+///         }
+///         Ok(())
+///     }
+/// }
+///
+/// let mut provider: Box<dyn WarmStart> = Box::new(Scaled(0.9));
+/// let problem = deepcontact_core::ContactProblem::new();
+/// let ctx = WarmStartContext::new(&problem, &[], &[], 0, 0.01);
+/// provider.warm_start(&ctx, &mut []).unwrap();
+/// assert_eq!(provider.name(), "scaled");
+/// ```
+pub trait WarmStart: Send {
+    /// Short name used in reports and tables.
+    fn name(&self) -> &str;
+
+    /// Writes the initial impulses, one per point of `ctx.problem`, into `out` (zeroed on entry).
+    fn warm_start(&mut self, ctx: &WarmStartContext<'_>, out: &mut [Impulse]) -> Result<(), WarmStartError>;
+
+    /// Sees the converged impulses of the island after the solve. Default: nothing.
+    fn observe(&mut self, _ctx: &WarmStartContext<'_>, _solved: &[Impulse]) {}
+}
+
+impl<W: WarmStart + ?Sized> WarmStart for Box<W> {
+    fn name(&self) -> &str {
+        (**self).name()
+    }
+    fn warm_start(&mut self, ctx: &WarmStartContext<'_>, out: &mut [Impulse]) -> Result<(), WarmStartError> {
+        (**self).warm_start(ctx, out)
+    }
+    fn observe(&mut self, ctx: &WarmStartContext<'_>, solved: &[Impulse]) {
+        (**self).observe(ctx, solved)
+    }
+}
+
+/// The no-op provider: every solve starts from zero ("none" in the thesis).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ZeroWarmStart;
+
+impl WarmStart for ZeroWarmStart {
+    fn name(&self) -> &str {
+        "none"
+    }
+    fn warm_start(&mut self, _ctx: &WarmStartContext<'_>, out: &mut [Impulse]) -> Result<(), WarmStartError> {
+        out.fill(Impulse::ZERO);
+        Ok(())
+    }
+}
+
+/// Box2D's own warm start: the impulses carried from the previous step ("builtin").
+#[derive(Debug, Clone, Copy, Default)]
+pub struct CarriedWarmStart;
+
+impl WarmStart for CarriedWarmStart {
+    fn name(&self) -> &str {
+        "builtin"
+    }
+    fn warm_start(&mut self, ctx: &WarmStartContext<'_>, out: &mut [Impulse]) -> Result<(), WarmStartError> {
+        if ctx.carried.len() != out.len() {
+            return Err(WarmStartError::WrongLength { expected: out.len(), got: ctx.carried.len() });
+        }
+        out.copy_from_slice(ctx.carried);
+        Ok(())
+    }
+}

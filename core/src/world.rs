@@ -1,0 +1,494 @@
+//! The world and its step pipeline.
+
+use std::time::Instant;
+
+use crate::body::{Body, BodyDesc, BodyHandle, BodyKind};
+use crate::broad_phase::BroadPhase;
+use crate::contact::{ContactId, Impulse};
+use crate::error::CoreError;
+use crate::island::Islands;
+use crate::math::{Real, Vector};
+use crate::narrow_phase::NarrowPhase;
+use crate::problem::{ContactProblem, ProblemBody};
+use crate::report::{SolveReport, StepReport};
+use crate::solver::{PositionSettings, PositionSolver, SolverSettings, VelocitySolver};
+use crate::warm_start::{GuardPolicy, WarmStart, WarmStartContext, check_output};
+
+/// Settings of a world. Defaults are the thesis's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WorldSettings {
+    /// Gravity (default `(0, -9.81)` m/s²).
+    pub gravity: Vector,
+    /// Time step (default 0.01 s). Must be finite and > 0.
+    pub dt: Real,
+    /// Velocity solver stop rule (default: cap 1000, tolerance 1e-4, ∞-norm, ≥ 1 iteration).
+    pub solver: SolverSettings,
+    /// Position pass settings (default: cap 250, tolerance 1e-4, Baumgarte 0.2, slop 0.0005).
+    pub position: PositionSettings,
+    /// Points with separation up to this are kept as contacts (default 0: touching only,
+    /// as Box2D v2.4 circles).
+    pub prediction: Real,
+    /// Closing speed above which restitution applies (default 1 m/s, Box2D's value).
+    pub restitution_threshold: Real,
+    /// Largest translation per step; faster bodies are slowed (default 2 m, Box2D's value).
+    pub max_translation: Real,
+    /// Largest rotation per step (default π/2, Box2D's value).
+    pub max_rotation: Real,
+    /// What to do when a warm start fails (default: fall back to zeros and count).
+    pub guard: GuardPolicy,
+}
+
+impl Default for WorldSettings {
+    fn default() -> Self {
+        Self {
+            gravity: Vector::new(0.0, -9.81),
+            dt: 0.01,
+            solver: SolverSettings::default(),
+            position: PositionSettings::default(),
+            prediction: 0.0,
+            restitution_threshold: 1.0,
+            max_translation: 2.0,
+            max_rotation: 0.5 * std::f64::consts::PI,
+            guard: GuardPolicy::FallbackToZero,
+        }
+    }
+}
+
+impl WorldSettings {
+    /// Rejects out-of-range settings with a typed error naming the setting.
+    pub fn validate(&self) -> Result<(), CoreError> {
+        let err = |name, value: Real, reason| Err(CoreError::InvalidSetting { name, value, reason });
+        if !(self.dt.is_finite() && self.dt > 0.0) {
+            return err("dt", self.dt, "must be finite and > 0");
+        }
+        if !(self.gravity.x.is_finite() && self.gravity.y.is_finite()) {
+            return err("gravity", if self.gravity.x.is_finite() { self.gravity.y } else { self.gravity.x }, "must be finite");
+        }
+        if !(self.prediction.is_finite() && self.prediction >= 0.0) {
+            return err("prediction", self.prediction, "must be finite and >= 0");
+        }
+        if !(self.restitution_threshold.is_finite() && self.restitution_threshold >= 0.0) {
+            return err("restitution_threshold", self.restitution_threshold, "must be finite and >= 0");
+        }
+        if !(self.max_translation > 0.0) {
+            return err("max_translation", self.max_translation, "must be > 0");
+        }
+        if !(self.max_rotation > 0.0) {
+            return err("max_rotation", self.max_rotation, "must be > 0");
+        }
+        self.solver.validate()?;
+        self.position.validate()
+    }
+}
+
+/// Contacts of the current step, kept for the next step's matching.
+#[derive(Debug, Default, Clone)]
+struct Persistent {
+    /// `(id, final impulse)` sorted by id.
+    impulses: Vec<(ContactId, Impulse)>,
+}
+
+impl Persistent {
+    fn lookup(&self, id: &ContactId) -> Option<Impulse> {
+        self.impulses.binary_search_by(|(k, _)| k.cmp(id)).ok().map(|i| self.impulses[i].1)
+    }
+}
+
+/// Per-step scratch buffers, taken out of the world during a step so that providers can
+/// borrow the world immutably.
+#[derive(Debug, Default)]
+struct Scratch {
+    problems: Vec<ContactProblem>,
+    /// Per island: index of each point in the narrow phase's contact list.
+    point_source: Vec<Vec<u32>>,
+    carried: Vec<Impulse>,
+    persisted: Vec<bool>,
+    warm: Vec<Impulse>,
+    impulses: Vec<Impulse>,
+    velocities: Vec<(Vector, Real)>,
+    poses: Vec<(Vector, Real)>,
+    report: SolveReport,
+    local_index: Vec<u32>,
+    manifold_bodies: Vec<(u32, u32)>,
+    dynamic: Vec<bool>,
+    /// Final impulse of every narrow-phase contact this step.
+    solved: Vec<Impulse>,
+}
+
+/// A 2D rigid-body world stepped Box2D-style with pluggable warm start and solvers.
+#[derive(Debug, Default)]
+pub struct World {
+    bodies: Vec<Body>,
+    settings: WorldSettings,
+    step_index: u64,
+    broad: BroadPhase,
+    narrow: NarrowPhase,
+    islands: Islands,
+    persistent: Persistent,
+    scratch: Scratch,
+}
+
+impl World {
+    /// An empty world with validated settings.
+    pub fn new(settings: WorldSettings) -> Result<Self, CoreError> {
+        settings.validate()?;
+        Ok(Self { settings, ..Self::default() })
+    }
+
+    /// Adds a body; parameters are validated (the error names the body index and field).
+    pub fn add_body(&mut self, desc: &BodyDesc) -> Result<BodyHandle, CoreError> {
+        let body = Body::from_desc(desc, self.bodies.len())?;
+        self.bodies.push(body);
+        Ok(BodyHandle((self.bodies.len() - 1) as u32))
+    }
+
+    /// A world holding `bodies`, in order (handle `i` is `bodies[i]`).
+    pub fn with_bodies(settings: WorldSettings, bodies: &[BodyDesc]) -> Result<Self, CoreError> {
+        let mut w = Self::new(settings)?;
+        for b in bodies {
+            w.add_body(b)?;
+        }
+        Ok(w)
+    }
+
+    /// All bodies, indexed by handle.
+    pub fn bodies(&self) -> &[Body] {
+        &self.bodies
+    }
+
+    /// Mutable access to one body (to push it, teleport it, ...). Its state is re-validated
+    /// when the next step starts.
+    pub fn body_mut(&mut self, handle: BodyHandle) -> Result<&mut Body, CoreError> {
+        self.bodies.get_mut(handle.0 as usize).ok_or(CoreError::UnknownBody(handle.0 as usize))
+    }
+
+    /// The settings.
+    pub fn settings(&self) -> &WorldSettings {
+        &self.settings
+    }
+
+    /// Replaces the settings after validating them.
+    pub fn set_settings(&mut self, settings: WorldSettings) -> Result<(), CoreError> {
+        settings.validate()?;
+        self.settings = settings;
+        Ok(())
+    }
+
+    /// Index of the next step (the number of steps taken so far).
+    pub fn step_index(&self) -> u64 {
+        self.step_index
+    }
+
+    /// Contacts of the last step: `(id, final impulse)` sorted by id.
+    pub fn contacts(&self) -> &[(ContactId, Impulse)] {
+        &self.persistent.impulses
+    }
+
+    /// Contact points (with normals) of the last step's narrow phase, grouped by manifold.
+    pub fn raw_contacts(&self) -> &[crate::narrow_phase::RawContact] {
+        &self.narrow.contacts
+    }
+
+    /// The contact problems of the last step, one per island (empty before the first step).
+    pub fn last_problems(&self) -> &[ContactProblem] {
+        &self.scratch.problems
+    }
+
+    /// Total kinetic energy of the dynamic bodies.
+    pub fn kinetic_energy(&self) -> Real {
+        self.bodies.iter().map(Body::kinetic_energy).sum()
+    }
+
+    fn check_state(&self) -> Result<(), CoreError> {
+        let step = self.step_index;
+        for (i, b) in self.bodies.iter().enumerate() {
+            let bad = |field| Err(CoreError::NonFiniteState { body: i, field, step });
+            if !(b.position.x.is_finite() && b.position.y.is_finite()) {
+                return bad("position");
+            }
+            if !b.angle.is_finite() {
+                return bad("angle");
+            }
+            if !(b.linear_velocity.x.is_finite() && b.linear_velocity.y.is_finite()) {
+                return bad("linear velocity");
+            }
+            if !b.angular_velocity.is_finite() {
+                return bad("angular velocity");
+            }
+        }
+        Ok(())
+    }
+
+    /// Builds the contact problems of the current contacts (after the narrow phase).
+    fn build_problems(&mut self, s: &mut Scratch) {
+        let nb = self.bodies.len();
+        s.dynamic.clear();
+        s.dynamic.extend(self.bodies.iter().map(Body::is_dynamic));
+        s.manifold_bodies.clear();
+        for &(start, _) in &self.narrow.manifolds_ranges {
+            let id = self.narrow.contacts[start as usize].id;
+            s.manifold_bodies.push((id.body_a, id.body_b));
+        }
+        self.islands.build(&s.dynamic, &s.manifold_bodies);
+        let n_islands = self.islands.len();
+        while s.problems.len() < n_islands {
+            s.problems.push(ContactProblem::new());
+            s.point_source.push(Vec::new());
+        }
+        s.problems.truncate(n_islands);
+        s.point_source.truncate(n_islands);
+        s.local_index.clear();
+        s.local_index.resize(nb, u32::MAX);
+        let threshold = self.settings.restitution_threshold;
+        for k in 0..n_islands {
+            let problem = &mut s.problems[k];
+            let source = &mut s.point_source[k];
+            problem.clear();
+            source.clear();
+            let (ms, me) = self.islands.ranges[k];
+            for &m in &self.islands.manifolds[ms as usize..me as usize] {
+                let (cs, ce) = self.narrow.manifolds_ranges[m as usize];
+                let (a, b) = s.manifold_bodies[m as usize];
+                let mut local = |w: u32, problem: &mut ContactProblem| {
+                    let li = s.local_index[w as usize];
+                    if li != u32::MAX {
+                        return li;
+                    }
+                    let body = &self.bodies[w as usize];
+                    let li = problem.add_body(ProblemBody {
+                        world_index: w,
+                        position: body.position,
+                        angle: body.angle,
+                        linear_velocity: body.linear_velocity,
+                        angular_velocity: body.angular_velocity,
+                        inv_mass: body.inv_mass,
+                        inv_inertia: body.inv_inertia,
+                    });
+                    s.local_index[w as usize] = li;
+                    li
+                };
+                let la = local(a, problem);
+                let lb = local(b, problem);
+                let (ma, mb) = (&self.bodies[a as usize].material, &self.bodies[b as usize].material);
+                let friction = (ma.friction * mb.friction).sqrt();
+                let restitution = ma.restitution.max(mb.restitution);
+                problem.begin_manifold();
+                for c in cs..ce {
+                    let raw = &self.narrow.contacts[c as usize];
+                    problem.add_point(
+                        raw.id,
+                        la,
+                        lb,
+                        raw.point,
+                        raw.normal,
+                        raw.separation,
+                        friction,
+                        restitution,
+                        threshold,
+                    );
+                    source.push(c);
+                }
+            }
+            for b in &problem.bodies {
+                s.local_index[b.world_index as usize] = u32::MAX;
+            }
+        }
+    }
+
+    /// Advances the world by one step of `dt`:
+    /// integrate velocities → broad phase → narrow phase (impulses carried by id) → islands →
+    /// per island { problem → warm start → velocity solve → observe } → integrate positions →
+    /// position pass.
+    pub fn step(
+        &mut self,
+        warm_start: &mut dyn WarmStart,
+        solver: &mut dyn VelocitySolver,
+        position_solver: &mut dyn PositionSolver,
+    ) -> Result<StepReport, CoreError> {
+        let t_step = Instant::now();
+        self.check_state()?;
+        let settings = self.settings;
+        settings.validate()?;
+        let dt = settings.dt;
+        let mut report = StepReport { step: self.step_index, ..StepReport::default() };
+
+        // 1. Integrate velocities (gravity only; no damping, as in the thesis).
+        for b in self.bodies.iter_mut().filter(|b| b.kind == BodyKind::Dynamic) {
+            b.linear_velocity += dt * settings.gravity;
+        }
+
+        // 2-3. Broad and narrow phase.
+        let pairs = self.broad.find_pairs(&self.bodies, settings.prediction);
+        self.narrow.collide(&self.bodies, pairs, settings.prediction);
+
+        // 4-5. Islands and their contact problems.
+        let mut s = std::mem::take(&mut self.scratch);
+        self.build_problems(&mut s);
+        let n_islands = s.problems.len();
+        report.islands = n_islands;
+        s.solved.clear();
+        s.solved.resize(self.narrow.contacts.len(), Impulse::ZERO);
+
+        let (mut se_n, mut se_t) = (0.0, 0.0);
+        let mut outcome = Ok(());
+        for k in 0..n_islands {
+            let n = s.problems[k].points.len();
+            report.contacts += n;
+            // Impulses carried over from the previous step by contact id.
+            s.carried.clear();
+            s.persisted.clear();
+            for p in &s.problems[k].points {
+                match self.persistent.lookup(&p.id) {
+                    Some(imp) => {
+                        s.carried.push(imp);
+                        s.persisted.push(true);
+                    }
+                    None => {
+                        s.carried.push(Impulse::ZERO);
+                        s.persisted.push(false);
+                    }
+                }
+            }
+            s.warm.clear();
+            s.warm.resize(n, Impulse::ZERO);
+            let ctx = WarmStartContext::new(&s.problems[k], &s.carried, &s.persisted, self.step_index, dt)
+                .with_world(self, k, n_islands);
+
+            // 6. Warm start, checked before use.
+            let t0 = Instant::now();
+            let provided = warm_start.warm_start(&ctx, &mut s.warm).and_then(|_| check_output(&s.warm, n));
+            report.warm_start_seconds += t0.elapsed().as_secs_f64();
+            if let Err(e) = provided {
+                match settings.guard {
+                    GuardPolicy::FallbackToZero => {
+                        report.fallbacks += 1;
+                        s.warm.fill(Impulse::ZERO);
+                    }
+                    GuardPolicy::Error => {
+                        outcome = Err(CoreError::WarmStart {
+                            provider: warm_start.name().to_string(),
+                            step: self.step_index,
+                            island: k,
+                            source: e,
+                        });
+                        break;
+                    }
+                }
+            }
+
+            // 7. Velocity solve from the warm start.
+            s.impulses.clear();
+            s.impulses.extend_from_slice(&s.warm);
+            s.velocities.clear();
+            s.velocities.resize(s.problems[k].bodies.len(), (Vector::zeros(), 0.0));
+            let t0 = Instant::now();
+            let solved =
+                solver.solve(&s.problems[k], &settings.solver, &mut s.impulses, &mut s.velocities, &mut s.report);
+            report.solve_seconds += t0.elapsed().as_secs_f64();
+            if let Err(e) = solved {
+                outcome = Err(e);
+                break;
+            }
+
+            // 8. The provider observes the solution.
+            warm_start.observe(&ctx, &s.impulses);
+
+            let r = &s.report;
+            report.velocity_iterations = report.velocity_iterations.max(r.iterations);
+            report.velocity_iterations_sum += r.iterations as u64;
+            report.capped_islands += usize::from(!r.converged);
+            report.natural_residual = report.natural_residual.max(r.natural_residual);
+            for (i, (&ri, &r2)) in r.residual_inf.iter().zip(&r.residual_l2).enumerate() {
+                if i < report.residual_curve.len() {
+                    report.residual_curve[i] = report.residual_curve[i].max(ri);
+                    report.residual_curve_l2[i] += r2 * r2;
+                } else {
+                    report.residual_curve.push(ri);
+                    report.residual_curve_l2.push(r2 * r2);
+                }
+            }
+            for (w, f) in s.warm.iter().zip(&s.impulses) {
+                se_n += (w.normal - f.normal).powi(2);
+                se_t += (w.tangent - f.tangent).powi(2);
+            }
+            for (p, imp) in s.point_source[k].iter().zip(&s.impulses) {
+                s.solved[*p as usize] = *imp;
+            }
+            // Write the solved velocities back.
+            let problem = &s.problems[k];
+            for (pb, &(v, w)) in problem.bodies.iter().zip(&s.velocities) {
+                let body = &mut self.bodies[pb.world_index as usize];
+                if body.kind == BodyKind::Dynamic {
+                    body.linear_velocity = v;
+                    body.angular_velocity = w;
+                }
+            }
+        }
+        if let Err(e) = outcome {
+            self.scratch = s;
+            return Err(e);
+        }
+        for v in &mut report.residual_curve_l2 {
+            *v = v.sqrt();
+        }
+        if report.contacts > 0 {
+            report.mse_normal = se_n / report.contacts as Real;
+            report.mse_tangent = se_t / report.contacts as Real;
+        }
+
+        // 9. Integrate positions, with Box2D's translation / rotation clamps.
+        for b in self.bodies.iter_mut().filter(|b| b.kind != BodyKind::Static) {
+            let mut v = b.linear_velocity;
+            let dx = dt * v;
+            if dx.norm_squared() > settings.max_translation.powi(2) {
+                v *= settings.max_translation / dx.norm();
+                b.linear_velocity = v;
+            }
+            let mut w = b.angular_velocity;
+            if (dt * w).abs() > settings.max_rotation {
+                w *= settings.max_rotation / (dt * w).abs();
+                b.angular_velocity = w;
+            }
+            b.position += dt * v;
+            b.angle += dt * w;
+        }
+
+        // 10. Position pass per island (not warm-started).
+        let mut min_sep = Real::INFINITY;
+        for k in 0..n_islands {
+            let problem = &s.problems[k];
+            s.poses.clear();
+            s.poses.extend(problem.bodies.iter().map(|pb| {
+                let b = &self.bodies[pb.world_index as usize];
+                (b.position, b.angle)
+            }));
+            let pr = match position_solver.solve_positions(problem, &settings.position, &mut s.poses) {
+                Ok(pr) => pr,
+                Err(e) => {
+                    self.scratch = s;
+                    return Err(e);
+                }
+            };
+            report.position_iterations = report.position_iterations.max(pr.iterations);
+            min_sep = min_sep.min(pr.min_separation);
+            for (pb, &(x, a)) in problem.bodies.iter().zip(&s.poses) {
+                let body = &mut self.bodies[pb.world_index as usize];
+                if body.kind == BodyKind::Dynamic {
+                    body.position = x;
+                    body.angle = a;
+                }
+            }
+        }
+        report.min_separation = if min_sep.is_finite() { min_sep } else { 0.0 };
+
+        // Keep this step's impulses for the next step's matching.
+        self.persistent.impulses.clear();
+        self.persistent.impulses.extend(self.narrow.contacts.iter().zip(&s.solved).map(|(c, imp)| (c.id, *imp)));
+        self.persistent.impulses.sort_unstable_by(|a, b| a.0.cmp(&b.0));
+
+        self.scratch = s;
+        self.step_index += 1;
+        report.step_seconds = t_step.elapsed().as_secs_f64();
+        Ok(report)
+    }
+}

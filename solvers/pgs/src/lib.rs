@@ -1,0 +1,42 @@
+//! # deepcontact-pgs
+//!
+//! Box2D v2.4-style sequential impulses: a projected Gauss-Seidel velocity solver
+//! ([`PgsSolver`]) with friction-then-normal row order, clamped accumulated impulses,
+//! restitution bias and an optional 2-point block solver; and the non-linear
+//! Gauss-Seidel position pass ([`PgsPositionSolver`]).
+//!
+//! Solver stages, in order: **prepare** (copy the problem into solver-friendly rows,
+//! buffers reused) → **warm start** (apply the start impulses) → **solve** (iterate until
+//! the stop rule holds) → **store impulses** (write them back, natural-map residual).
+#![warn(missing_docs)]
+
+mod position;
+mod velocity;
+
+pub use position::PgsPositionSolver;
+pub use velocity::{PgsSettings, PgsSolver};
+
+/// Errors of this crate (wrapped into [`deepcontact_core::CoreError`] at the trait boundary).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PgsError {
+    /// The problem failed validation.
+    #[error("invalid problem: {0}")]
+    InvalidProblem(#[from] deepcontact_core::CoreError),
+    /// The iteration produced a non-finite impulse (the input was too extreme).
+    #[error("non-finite impulse at point {point} in iteration {iteration}")]
+    Diverged {
+        /// Point index.
+        point: usize,
+        /// Iteration (1-based).
+        iteration: u32,
+    },
+}
+
+impl From<PgsError> for deepcontact_core::CoreError {
+    fn from(e: PgsError) -> Self {
+        match e {
+            PgsError::InvalidProblem(e) => e,
+            other => deepcontact_core::CoreError::Solver { solver: "pgs".into(), reason: other.to_string() },
+        }
+    }
+}
