@@ -1,9 +1,7 @@
 //! `deepcontact`: simulate the thesis scenes, compare warm starts, and more.
 
-mod common;
-mod simulate;
-
 use clap::{Parser, Subcommand};
+use deepcontact_cli::simulate;
 
 /// 2D rigid-body contacts solved iteratively, with pluggable warm starts.
 #[derive(Debug, Parser)]

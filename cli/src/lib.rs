@@ -1,0 +1,6 @@
+//! Library side of the `deepcontact` command-line tool: each subcommand is a module with
+//! its arguments and a `run` function, so tests can drive them without a process.
+#![warn(missing_docs)]
+
+pub mod common;
+pub mod simulate;
