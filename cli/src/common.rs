@@ -81,5 +81,7 @@ impl SolverArgs {
 
 /// The registry with every provider and solver this build knows.
 pub fn registry() -> Registry {
-    Registry::with_defaults()
+    let mut registry = Registry::with_defaults();
+    deepcontact_onnx::register(&mut registry);
+    registry
 }

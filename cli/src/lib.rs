@@ -3,4 +3,5 @@
 #![warn(missing_docs)]
 
 pub mod common;
+pub mod generate;
 pub mod simulate;

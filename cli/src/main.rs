@@ -1,7 +1,7 @@
 //! `deepcontact`: simulate the thesis scenes, compare warm starts, and more.
 
 use clap::{Parser, Subcommand};
-use deepcontact_cli::simulate;
+use deepcontact_cli::{generate, simulate};
 
 /// 2D rigid-body contacts solved iteratively, with pluggable warm starts.
 #[derive(Debug, Parser)]
@@ -15,12 +15,15 @@ struct Cli {
 enum Command {
     /// Run one scene with one warm start and report every step.
     Simulate(simulate::SimulateArgs),
+    /// Training data for the CNN warm starts: input and label grids per step, one safetensors file per seed.
+    Generate(generate::GenerateArgs),
 }
 
 fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Simulate(args) => simulate::run(args),
+        Command::Generate(args) => generate::run(args),
     };
     if let Err(e) = result {
         eprintln!("error: {e}");

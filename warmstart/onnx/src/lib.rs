@@ -1,0 +1,35 @@
+//! # deepcontact-onnx
+//!
+//! CNN warm-start providers: each step, the world is spread onto grids (particles → grid),
+//! an ONNX model predicts impulse grids, and those are read back at the contact points
+//! (grid → particles). Shipped models: [`PRESSURE`] and [`PEAK`] (in `models/`, with model
+//! cards); any other model with a card loads through `onnx:path=...`.
+//!
+//! Backends (see [`backend`]): tract (pure Rust, default) or ONNX Runtime (`load-dynamic`).
+//!
+//! ```no_run
+//! let mut registry = deepcontact_warmstart::Registry::with_defaults();
+//! deepcontact_onnx::register(&mut registry);
+//! let provider = registry.build_provider("pressure").unwrap();
+//! assert_eq!(provider.name(), "pressure");
+//! ```
+#![warn(missing_docs)]
+
+#[cfg(not(any(feature = "tract", feature = "load-dynamic")))]
+compile_error!("deepcontact-onnx needs a backend: enable the `tract` (default) or the `load-dynamic` feature");
+
+pub mod backend;
+pub mod card;
+mod error;
+pub mod features;
+pub mod model;
+pub mod provider;
+mod registry;
+
+pub use backend::Backend;
+pub use card::{LayoutExpectation, ModelCard, TensorCard};
+pub use error::OnnxError;
+pub use features::GridLayout;
+pub use model::{ModelSource, OnnxModel};
+pub use provider::{CnnWarmStart, ProviderOptions, ShippedModel, PEAK, PRESSURE};
+pub use registry::register;

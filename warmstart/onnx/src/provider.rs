@@ -1,0 +1,195 @@
+//! The CNN warm-start provider: particles → grid → model → grid → particles.
+
+use std::path::{Path, PathBuf};
+
+use deepcontact_core::{ContactId, Impulse, Real, Vector, WarmStart, WarmStartContext, WarmStartError};
+
+use crate::backend::Backend;
+use crate::error::OnnxError;
+use crate::features::{self, BodyParticle, GridLayout};
+use crate::model::{ModelSource, OnnxModel};
+
+/// A model shipped in the repository's `models/` directory.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ShippedModel {
+    /// Provider name (`pressure`, `peak`).
+    pub name: &'static str,
+    /// File name of the model inside the models directory; the card is the same name with `.json`.
+    pub file: &'static str,
+}
+
+/// The shipped Pressure model (`models/pressure.onnx`).
+pub const PRESSURE: ShippedModel = ShippedModel { name: "pressure", file: "pressure.onnx" };
+/// The shipped Peak model (`models/peak.onnx`).
+pub const PEAK: ShippedModel = ShippedModel { name: "peak", file: "peak.onnx" };
+
+impl ShippedModel {
+    /// The models directory: `$DEEPCONTACT_MODELS_DIR` if set, else the workspace's `models/`
+    /// (resolved at compile time from this crate's manifest directory).
+    pub fn models_dir() -> PathBuf {
+        match std::env::var_os("DEEPCONTACT_MODELS_DIR") {
+            Some(d) if !d.is_empty() => PathBuf::from(d),
+            _ => Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join("..").join("models"),
+        }
+    }
+
+    /// Path of the model file.
+    pub fn path(&self) -> PathBuf {
+        Self::models_dir().join(self.file)
+    }
+}
+
+/// Options of a CNN provider.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ProviderOptions {
+    /// Inference backend.
+    pub backend: Backend,
+}
+
+impl Default for ProviderOptions {
+    fn default() -> Self {
+        Self { backend: Backend::default_for_build() }
+    }
+}
+
+/// A warm start predicted by a CNN on grids.
+///
+/// Per step (on the first island, or whenever the step index changes) it spreads the whole
+/// world onto the input grids, runs the model once, and reads the impulse grids back at every
+/// contact point of the step; each island then takes its points' values by contact id. Without a
+/// world (hand-built problems) the island's own bodies and points are used.
+///
+/// Negative predicted normal impulses are clamped to 0 (a normal impulse is never negative, and
+/// the world rejects a warm start that has one); tangents are passed as predicted. A non-finite
+/// prediction is an error (the world then starts that island from zeros and counts a fallback).
+#[derive(Debug)]
+pub struct CnnWarmStart {
+    name: String,
+    model: OnnxModel,
+    layout: GridLayout,
+    input: Vec<f32>,
+    output: Vec<f32>,
+    node_weight: Vec<Real>,
+    /// Predictions of the current step, sorted by contact id.
+    predicted: Vec<(ContactId, Impulse)>,
+    /// Step index `predicted` belongs to.
+    step: Option<u64>,
+}
+
+impl CnnWarmStart {
+    /// Loads a model (checked against the thesis grid layout) as a provider called `name`.
+    pub fn new(name: &str, source: ModelSource<'_>, options: ProviderOptions) -> Result<Self, OnnxError> {
+        let layout = GridLayout::default();
+        let model = OnnxModel::load(source, options.backend, &layout.expectation())?;
+        Ok(Self {
+            name: name.to_string(),
+            input: vec![0.0; layout.input_len()],
+            output: vec![0.0; layout.output_len()],
+            node_weight: vec![0.0; layout.nodes()],
+            predicted: Vec::new(),
+            step: None,
+            model,
+            layout,
+        })
+    }
+
+    /// A shipped model from the models directory.
+    pub fn shipped(model: ShippedModel, options: ProviderOptions) -> Result<Self, OnnxError> {
+        let path = model.path();
+        Self::new(model.name, ModelSource::Files { model: &path, card: None }, options)
+    }
+
+    /// The model.
+    pub fn model(&self) -> &OnnxModel {
+        &self.model
+    }
+
+    /// The grid layout.
+    pub fn layout(&self) -> &GridLayout {
+        &self.layout
+    }
+
+    /// The last input grids (`[6, ny, nx]`).
+    pub fn last_input(&self) -> &[f32] {
+        &self.input
+    }
+
+    /// The last output grids (`[2, ny, nx]`).
+    pub fn last_output(&self) -> &[f32] {
+        &self.output
+    }
+
+    /// Runs the model on the current input grids and reads the output at `points`
+    /// (`(id, position)`), replacing `self.predicted`.
+    fn predict(&mut self, points: &[(ContactId, Vector)]) -> Result<(), WarmStartError> {
+        self.model.run(&self.input, &mut self.output).map_err(|e| WarmStartError::Provider(e.to_string()))?;
+        self.node_weight.fill(0.0);
+        self.layout.gather_weights(points.iter().map(|p| p.1), &mut self.node_weight);
+        let (normal, tangent) = self.output.split_at(self.layout.nodes());
+        self.predicted.clear();
+        for (point, &(id, p)) in points.iter().enumerate() {
+            let [n, t] = self.layout.gather(&p, [normal, tangent], &self.node_weight);
+            if !(n.is_finite() && t.is_finite()) {
+                return Err(WarmStartError::NonFinite { point, normal: n, tangent: t });
+            }
+            self.predicted.push((id, Impulse::new(n.max(0.0), t)));
+        }
+        self.predicted.sort_unstable_by(|a, b| a.0.cmp(&b.0));
+        Ok(())
+    }
+}
+
+thread_local! {
+    static POINTS: std::cell::RefCell<Vec<(ContactId, Vector)>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+impl WarmStart for CnnWarmStart {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn warm_start(&mut self, ctx: &WarmStartContext<'_>, out: &mut [Impulse]) -> Result<(), WarmStartError> {
+        if out.len() != ctx.problem.points.len() {
+            return Err(WarmStartError::WrongLength { expected: ctx.problem.points.len(), got: out.len() });
+        }
+        POINTS.with_borrow_mut(|points| -> Result<(), WarmStartError> {
+            match ctx.world {
+                Some(world) => {
+                    if ctx.island == 0 || self.step != Some(ctx.step) {
+                        features::world_input_grids(&self.layout, world, &mut self.input);
+                        points.clear();
+                        points.extend(world.raw_contacts().iter().map(|c| (c.id, c.point)));
+                        self.predict(points)?;
+                        self.step = Some(ctx.step);
+                    }
+                }
+                None => {
+                    let p = ctx.problem;
+                    features::input_grids(
+                        &self.layout,
+                        p.bodies.iter().filter(|b| b.inv_mass > 0.0).map(|b| BodyParticle {
+                            position: b.position,
+                            mass: 1.0 / b.inv_mass,
+                            velocity: b.linear_velocity,
+                            angular_velocity: b.angular_velocity,
+                        }),
+                        p.points.iter().map(|c| (c.point, c.normal)),
+                        &mut self.input,
+                    );
+                    points.clear();
+                    points.extend(p.points.iter().map(|c| (c.id, c.point)));
+                    self.predict(points)?;
+                    self.step = None;
+                }
+            }
+            Ok(())
+        })?;
+        for (o, point) in out.iter_mut().zip(&ctx.problem.points) {
+            *o = match self.predicted.binary_search_by(|(k, _)| k.cmp(&point.id)) {
+                Ok(i) => self.predicted[i].1,
+                Err(_) => Impulse::ZERO,
+            };
+        }
+        Ok(())
+    }
+}
