@@ -19,7 +19,10 @@ impl FromStr for Spec {
     type Err = WarmstartError;
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        let bad = |reason: &str| WarmstartError::MalformedSpec { spec: s.to_string(), reason: reason.to_string() };
+        let bad = |reason: &str| WarmstartError::MalformedSpec {
+            spec: s.to_string(),
+            reason: reason.to_string(),
+        };
         let s_trim = s.trim();
         let (name, rest) = match s_trim.split_once(':') {
             Some((n, r)) => (n.trim(), Some(r)),
@@ -28,8 +31,13 @@ impl FromStr for Spec {
         if name.is_empty() {
             return Err(bad("empty name"));
         }
-        if !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-' || c == '.') {
-            return Err(bad("name may only contain letters, digits, '_', '-' and '.'"));
+        if !name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-' || c == '.')
+        {
+            return Err(bad(
+                "name may only contain letters, digits, '_', '-' and '.'",
+            ));
         }
         let mut params = BTreeMap::new();
         if let Some(rest) = rest {
@@ -37,7 +45,9 @@ impl FromStr for Spec {
                 return Err(bad("':' must be followed by key=value parameters"));
             }
             for kv in rest.split(',') {
-                let (k, v) = kv.split_once('=').ok_or_else(|| bad("parameters must be key=value"))?;
+                let (k, v) = kv
+                    .split_once('=')
+                    .ok_or_else(|| bad("parameters must be key=value"))?;
                 let (k, v) = (k.trim(), v.trim());
                 if k.is_empty() || v.is_empty() {
                     return Err(bad("empty parameter key or value"));
@@ -47,7 +57,10 @@ impl FromStr for Spec {
                 }
             }
         }
-        Ok(Spec { name: name.to_string(), params })
+        Ok(Spec {
+            name: name.to_string(),
+            params,
+        })
     }
 }
 
@@ -101,7 +114,10 @@ pub struct Params<'a> {
 impl<'a> Params<'a> {
     /// Wraps a spec.
     pub fn new(spec: &'a Spec) -> Self {
-        Self { spec, accepted: Vec::new() }
+        Self {
+            spec,
+            accepted: Vec::new(),
+        }
     }
 
     /// The spec's name.
@@ -140,7 +156,9 @@ impl<'a> Params<'a> {
     pub fn u64(&mut self, key: &'static str, default: u64) -> Result<u64, WarmstartError> {
         match self.string(key) {
             None => Ok(default),
-            Some(v) => v.parse::<u64>().map_err(|e| self.invalid(key, v, e.to_string())),
+            Some(v) => v
+                .parse::<u64>()
+                .map_err(|e| self.invalid(key, v, e.to_string())),
         }
     }
 
@@ -154,7 +172,11 @@ impl<'a> Params<'a> {
                 return Err(WarmstartError::UnknownParameter {
                     spec: self.spec.name.clone(),
                     param: k.clone(),
-                    accepted: if acc.is_empty() { "none".into() } else { acc.join(", ") },
+                    accepted: if acc.is_empty() {
+                        "none".into()
+                    } else {
+                        acc.join(", ")
+                    },
                 });
             }
         }
