@@ -4,4 +4,5 @@
 
 pub mod common;
 pub mod generate;
+pub mod render;
 pub mod simulate;

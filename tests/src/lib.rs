@@ -1,1 +1,34 @@
-//! Shared helpers of the integration tests.
+//! Shared helpers of the cross-crate integration tests: run a scene with a provider and
+//! collect what the tests check.
+#![warn(missing_docs)]
+
+use deepcontact_core::{CoreError, StepReport, WarmStart, World, WorldSettings, scene::Scene};
+use deepcontact_pgs::{PgsPositionSolver, PgsSolver};
+
+/// Steps `world` `steps` times with PGS and `warm`, calling `check` after every step.
+pub fn run(
+    world: &mut World,
+    warm: &mut dyn WarmStart,
+    steps: u64,
+    mut check: impl FnMut(&World, &StepReport),
+) -> Result<Vec<StepReport>, CoreError> {
+    let mut solver = PgsSolver::new();
+    let mut position = PgsPositionSolver::new();
+    let mut reports = Vec::with_capacity(steps as usize);
+    for _ in 0..steps {
+        let r = world.step(warm, &mut solver, &mut position)?;
+        check(world, &r);
+        reports.push(r);
+    }
+    Ok(reports)
+}
+
+/// Builds `scene` with the default (thesis) settings.
+pub fn build(scene: &Scene) -> World {
+    scene.build(WorldSettings::default()).expect("scene builds")
+}
+
+/// Bit patterns of every body's position and angle (for determinism checks).
+pub fn state_bits(world: &World) -> Vec<[u64; 3]> {
+    world.bodies().iter().map(|b| [b.position.x.to_bits(), b.position.y.to_bits(), b.angle.to_bits()]).collect()
+}

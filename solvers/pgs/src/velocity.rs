@@ -201,6 +201,22 @@ impl PgsSolver {
         (max_d, sum_sq)
     }
 
+    /// Friction rows were clamped against the normal impulse of the previous sweep; a
+    /// last projection onto the final cone `|λt| ≤ μ λn` (its change applied to the
+    /// velocities, so both stay consistent) makes the returned impulses admissible even
+    /// when the cap was hit. The change is at most μ × the last normal change.
+    fn project_friction(&mut self) {
+        for r in &mut self.rows {
+            let bound = r.friction * r.ln;
+            let new = r.lt.clamp(-bound, bound);
+            if new != r.lt {
+                let d = new - r.lt;
+                r.lt = new;
+                apply(&mut self.vel, r, 0.0, d);
+            }
+        }
+    }
+
     /// Natural-map residual of the current impulses and velocities, in impulse units.
     fn natural_residual(&self) -> Real {
         let mut res: Real = 0.0;
@@ -325,6 +341,7 @@ impl VelocitySolver for PgsSolver {
             }
         }
         report.iterations = it;
+        self.project_friction();
         // Stage 4, store impulses and velocities.
         for (imp, r) in impulses.iter_mut().zip(&self.rows) {
             *imp = Impulse::new(r.ln, r.lt);

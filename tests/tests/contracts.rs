@@ -1,0 +1,177 @@
+//! The core contracts: solvers, warm starts, the output guard, typed errors.
+
+use deepcontact_core::math::Real;
+use deepcontact_core::{
+    BodyDesc, CarriedWarmStart, ContactProblem, CoreError, GuardPolicy, Impulse, Material, ShapeDesc, SolveReport,
+    SolverSettings, Vector, VelocitySolver, WarmStart, WarmStartContext, WarmStartError, World, WorldSettings,
+    ZeroWarmStart, scene,
+};
+use deepcontact_pgs::PgsSolver;
+use deepcontact_tests::{build, run};
+
+/// A settled pile's island problems with the impulses carried into them.
+fn settled_problems() -> Vec<(ContactProblem, Vec<Impulse>)> {
+    struct Grab(Vec<(ContactProblem, Vec<Impulse>)>);
+    impl WarmStart for Grab {
+        fn name(&self) -> &str {
+            "grab"
+        }
+        fn warm_start(&mut self, ctx: &WarmStartContext<'_>, out: &mut [Impulse]) -> Result<(), WarmStartError> {
+            if ctx.step == 160 {
+                self.0.push((ctx.problem.clone(), ctx.carried.to_vec()));
+            }
+            out.copy_from_slice(ctx.carried);
+            Ok(())
+        }
+    }
+    let mut world = build(&scene::pile(12345, 100).unwrap());
+    let mut grab = Grab(Vec::new());
+    run(&mut world, &mut grab, 161, |_, _| {}).unwrap();
+    assert!(!grab.0.is_empty());
+    grab.0
+}
+
+fn solve(problem: &ContactProblem, start: &[Impulse], settings: &SolverSettings) -> (Vec<Impulse>, Vec<(Vector, Real)>, SolveReport) {
+    let mut solver = PgsSolver::new();
+    let mut imp = start.to_vec();
+    let mut vel = vec![(Vector::zeros(), 0.0); problem.bodies.len()];
+    let mut report = SolveReport::default();
+    solver.solve(problem, settings, &mut imp, &mut vel, &mut report).unwrap();
+    (imp, vel, report)
+}
+
+/// Net contact impulse (linear, angular) on each body of `problem`.
+fn net_impulses(problem: &ContactProblem, imp: &[Impulse]) -> Vec<(Vector, Real)> {
+    let mut net = vec![(Vector::zeros(), 0.0); problem.bodies.len()];
+    for (p, l) in problem.points.iter().zip(imp) {
+        let f = l.normal * p.normal + l.tangent * p.tangent();
+        let (a, b) = (p.body_a as usize, p.body_b as usize);
+        net[a].0 -= f;
+        net[a].1 -= deepcontact_core::math::cross(&p.r_a, &f);
+        net[b].0 += f;
+        net[b].1 += deepcontact_core::math::cross(&p.r_b, &f);
+    }
+    net
+}
+
+#[test]
+fn converged_solves_from_none_and_builtin_agree() {
+    let settings = SolverSettings { tolerance: 1e-9, max_iterations: 200_000, ..SolverSettings::default() };
+    for (problem, carried) in settled_problems() {
+        let zeros = vec![Impulse::ZERO; problem.len()];
+        let (a, va, ra) = solve(&problem, &zeros, &settings);
+        let (b, vb, rb) = solve(&problem, &carried, &settings);
+        assert!(ra.converged && rb.converged, "{} / {} iterations", ra.iterations, rb.iterations);
+        // Velocities are unique, and so is each body's net contact impulse Jᵀλ = M(v − v*);
+        // the impulses themselves are not (a circle touching three neighbours is statically
+        // indeterminate), so the contract is checked on what the physics determines.
+        for ((v1, w1), (v2, w2)) in va.iter().zip(&vb) {
+            assert!((v1 - v2).norm() < 1e-5 && (w1 - w2).abs() < 1e-5, "velocities differ: {v1:?} {v2:?}");
+        }
+        let (na, nb) = (net_impulses(&problem, &a), net_impulses(&problem, &b));
+        for (i, (x, y)) in na.iter().zip(&nb).enumerate().filter(|(i, _)| problem.bodies[*i].inv_mass > 0.0) {
+            let d = (x.0 - y.0).norm().max((x.1 - y.1).abs());
+            assert!(d < 1e-4, "body {i}: net impulse differs by {d}");
+        }
+    }
+}
+
+#[test]
+fn a_converged_start_needs_one_iteration() {
+    let tight = SolverSettings { tolerance: 1e-10, max_iterations: 200_000, ..SolverSettings::default() };
+    for (problem, _) in settled_problems() {
+        let (solution, _, _) = solve(&problem, &vec![Impulse::ZERO; problem.len()], &tight);
+        let (_, _, r) = solve(&problem, &solution, &SolverSettings::default());
+        assert_eq!(r.iterations, 1, "restart from the solution took {} iterations", r.iterations);
+        assert!(r.natural_residual < 1e-4);
+    }
+}
+
+struct Garbage(Impulse);
+impl WarmStart for Garbage {
+    fn name(&self) -> &str {
+        "garbage"
+    }
+    fn warm_start(&mut self, _: &WarmStartContext<'_>, out: &mut [Impulse]) -> Result<(), WarmStartError> {
+        out.fill(self.0);
+        Ok(())
+    }
+}
+
+#[test]
+fn garbage_warm_starts_fall_back_to_zero_and_are_counted() {
+    for bad in [Impulse::new(Real::NAN, 0.0), Impulse::new(1.0, Real::INFINITY), Impulse::new(-1.0, 0.0)] {
+        let mut world = build(&scene::pile(3, 100).unwrap());
+        let mut clean = build(&scene::pile(3, 100).unwrap());
+        let reports = run(&mut world, &mut Garbage(bad), 120, |_, _| {}).unwrap();
+        run(&mut clean, &mut ZeroWarmStart, 120, |_, _| {}).unwrap();
+        let islands: usize = reports.iter().map(|r| r.islands).sum();
+        let fallbacks: usize = reports.iter().map(|r| r.fallbacks).sum();
+        assert!(islands > 0);
+        assert_eq!(fallbacks, islands, "every island should have fallen back for {bad:?}");
+        // Falling back to zeros is exactly the cold start.
+        assert_eq!(deepcontact_tests::state_bits(&world), deepcontact_tests::state_bits(&clean));
+    }
+}
+
+#[test]
+fn garbage_warm_start_is_a_typed_error_under_the_error_policy() {
+    let settings = WorldSettings { guard: GuardPolicy::Error, ..WorldSettings::default() };
+    let mut world = scene::pile(3, 100).unwrap().build(settings).unwrap();
+    let err = run(&mut world, &mut Garbage(Impulse::new(Real::NAN, 0.0)), 200, |_, _| {}).unwrap_err();
+    match err {
+        CoreError::WarmStart { provider, source: WarmStartError::NonFinite { point: 0, .. }, .. } => {
+            assert_eq!(provider, "garbage")
+        }
+        other => panic!("unexpected error {other}"),
+    }
+}
+
+#[test]
+fn bad_bodies_and_settings_get_typed_errors_naming_the_field() {
+    let mut world = World::new(WorldSettings::default()).unwrap();
+    let ball = |r: Real| BodyDesc::dynamic(ShapeDesc::Ball { radius: r }, Vector::zeros());
+    let err = world.add_body(&ball(-1.0)).unwrap_err();
+    assert!(matches!(err, CoreError::InvalidBodyParameter { field: "radius", .. }), "{err}");
+    let err = world.add_body(&ball(0.5).with_material(Material { density: Real::NAN, ..Material::default() })).unwrap_err();
+    assert!(matches!(err, CoreError::InvalidBodyParameter { field: "density", .. }), "{err}");
+    let err = world.add_body(&ball(0.5).with_material(Material { friction: -0.1, ..Material::default() })).unwrap_err();
+    assert!(matches!(err, CoreError::InvalidBodyParameter { field: "friction", .. }), "{err}");
+    let poly = ShapeDesc::ConvexPolygon { vertices: vec![Vector::new(0.0, 0.0), Vector::new(1.0, 0.0), Vector::new(2.0, 0.0)] };
+    let err = world.add_body(&BodyDesc::dynamic(poly, Vector::zeros())).unwrap_err();
+    assert!(matches!(err, CoreError::DegeneratePolygon { .. }), "{err}");
+    for dt in [0.0, -0.01, Real::NAN] {
+        let err = World::new(WorldSettings { dt, ..WorldSettings::default() }).unwrap_err();
+        assert!(matches!(err, CoreError::InvalidSetting { name: "dt", .. }), "{err}");
+    }
+    let s = SolverSettings { max_iterations: 0, ..SolverSettings::default() };
+    assert!(matches!(s.validate(), Err(CoreError::InvalidSetting { name: "max_iterations", .. })));
+    let s = SolverSettings { tolerance: -1.0, ..SolverSettings::default() };
+    assert!(matches!(s.validate(), Err(CoreError::InvalidSetting { name: "tolerance", .. })));
+}
+
+#[test]
+fn non_finite_state_entering_a_step_is_reported_with_the_body() {
+    let mut world = build(&scene::resting_ball());
+    world.body_mut(deepcontact_core::BodyHandle(1)).unwrap().linear_velocity.x = Real::NAN;
+    let err = run(&mut world, &mut CarriedWarmStart, 1, |_, _| {}).unwrap_err();
+    assert!(matches!(err, CoreError::NonFiniteState { body: 1, field: "linear velocity", step: 0 }), "{err}");
+}
+
+#[test]
+fn malformed_problems_are_rejected_by_the_solver() {
+    let (mut problem, _) = settled_problems().swap_remove(0);
+    problem.points[0].body_b = 10_000;
+    let mut imp = vec![Impulse::ZERO; problem.len()];
+    let mut vel = vec![(Vector::zeros(), 0.0); problem.bodies.len()];
+    let err = PgsSolver::new()
+        .solve(&problem, &SolverSettings::default(), &mut imp, &mut vel, &mut SolveReport::default())
+        .unwrap_err();
+    assert!(matches!(err, CoreError::InvalidProblem(_)), "{err}");
+    let mut short = vec![Impulse::ZERO; 1];
+    problem.points[0].body_b = 1;
+    let err = PgsSolver::new()
+        .solve(&problem, &SolverSettings::default(), &mut short, &mut vel, &mut SolveReport::default())
+        .unwrap_err();
+    assert!(matches!(err, CoreError::LengthMismatch { what: "impulses", .. } | CoreError::InvalidProblem(_)), "{err}");
+}
