@@ -14,8 +14,10 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use clap::Args;
-use deepcontact_core::{ContactId, Impulse, PositionSolver, WarmStart, WarmStartContext, WarmStartError, World};
-use deepcontact_onnx::features::{self, BodyParticle, GridLayout};
+use deepcontact_core::{
+    ContactId, Impulse, PositionSolver, WarmStart, WarmStartContext, WarmStartError, World,
+};
+use deepcontact_onnx::features::{GridFeatures, GridLayout};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use safetensors::tensor::{Dtype, TensorView};
@@ -54,6 +56,7 @@ pub struct GenerateArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+    /// Velocity solver and stop rule of the simulations.
     #[command(flatten)]
     pub solver: SolverArgs,
 }
@@ -64,8 +67,14 @@ pub fn parse_seeds(text: &str) -> Result<Vec<u64>, CliError> {
     let mut seeds = Vec::new();
     for part in text.split(',').map(str::trim).filter(|s| !s.is_empty()) {
         if let Some((a, b)) = part.split_once("..") {
-            let a: u64 = a.trim().parse().map_err(|_| bad("range start is not a number"))?;
-            let b: u64 = b.trim().parse().map_err(|_| bad("range end is not a number"))?;
+            let a: u64 = a
+                .trim()
+                .parse()
+                .map_err(|_| bad("range start is not a number"))?;
+            let b: u64 = b
+                .trim()
+                .parse()
+                .map_err(|_| bad("range end is not a number"))?;
             if b <= a {
                 return Err(bad("empty range"));
             }
@@ -86,7 +95,10 @@ pub fn parse_seeds(text: &str) -> Result<Vec<u64>, CliError> {
 pub fn parse_shard(text: &str) -> Result<(u64, u64), CliError> {
     let bad = || CliError::Usage(format!("--shard `{text}`: expected K/N with 0 <= K < N"));
     let (k, n) = text.split_once('/').ok_or_else(bad)?;
-    let (k, n): (u64, u64) = (k.trim().parse().map_err(|_| bad())?, n.trim().parse().map_err(|_| bad())?);
+    let (k, n): (u64, u64) = (
+        k.trim().parse().map_err(|_| bad())?,
+        n.trim().parse().map_err(|_| bad())?,
+    );
     if n == 0 || k >= n {
         return Err(bad());
     }
@@ -101,11 +113,12 @@ pub fn seed_file(out: &Path, seed: u64) -> PathBuf {
 /// Builtin warm start that also records, at the first island of each step, the world as the
 /// providers see it, and the warm start of every point.
 struct Recorder {
-    layout: GridLayout,
+    features: GridFeatures,
+    error: Option<String>,
     /// Whether the current step has been snapshotted.
     snap: Option<u64>,
     input: Vec<f32>,
-    bodies: Vec<BodyParticle>,
+    bodies: Vec<(f32, [f32; 2], [f32; 2], f32)>,
     warm: Vec<(ContactId, Impulse)>,
 }
 
@@ -114,23 +127,37 @@ impl WarmStart for Recorder {
         "builtin"
     }
 
-    fn warm_start(&mut self, ctx: &WarmStartContext<'_>, out: &mut [Impulse]) -> Result<(), WarmStartError> {
+    fn warm_start(
+        &mut self,
+        ctx: &WarmStartContext<'_>,
+        out: &mut [Impulse],
+    ) -> Result<(), WarmStartError> {
         deepcontact_core::CarriedWarmStart.warm_start(ctx, out)?;
         if self.snap != Some(ctx.step) {
             self.snap = Some(ctx.step);
             self.warm.clear();
             if let Some(world) = ctx.world {
-                features::world_input_grids(&self.layout, world, &mut self.input);
+                if let Err(e) = self.features.encode_world(world, &mut self.input) {
+                    self.error = Some(e.to_string());
+                }
                 self.bodies.clear();
-                self.bodies.extend(world.bodies().iter().map(|b| BodyParticle {
-                    position: b.position,
-                    mass: b.mass,
-                    velocity: b.linear_velocity,
-                    angular_velocity: b.angular_velocity,
+                self.bodies.extend(world.bodies().iter().map(|b| {
+                    (
+                        b.mass as f32,
+                        [b.position.x as f32, b.position.y as f32],
+                        [b.linear_velocity.x as f32, b.linear_velocity.y as f32],
+                        b.angular_velocity as f32,
+                    )
                 }));
             }
         }
-        self.warm.extend(ctx.problem.points.iter().map(|p| p.id).zip(out.iter().copied()));
+        self.warm.extend(
+            ctx.problem
+                .points
+                .iter()
+                .map(|p| p.id)
+                .zip(out.iter().copied()),
+        );
         Ok(())
     }
 }
@@ -154,7 +181,10 @@ struct Columns {
 }
 
 fn lookup(sorted: &[(ContactId, Impulse)], id: &ContactId) -> Impulse {
-    sorted.binary_search_by(|(k, _)| k.cmp(id)).map(|i| sorted[i].1).unwrap_or(Impulse::ZERO)
+    sorted
+        .binary_search_by(|(k, _)| k.cmp(id))
+        .map(|i| sorted[i].1)
+        .unwrap_or(Impulse::ZERO)
 }
 
 fn simulate_seed(
@@ -170,14 +200,21 @@ fn simulate_seed(
     let mut solver = registry.build_solver(solver_spec)?;
     let mut position = deepcontact_pgs::PgsPositionSolver::default();
     let position: &mut dyn PositionSolver = &mut position;
+    let features = GridFeatures::new(layout.clone()).map_err(|e| CliError::Usage(e.to_string()))?;
+    let mut labeler =
+        GridFeatures::new(layout.clone()).map_err(|e| CliError::Usage(e.to_string()))?;
     let mut rec = Recorder {
-        layout: layout.clone(),
+        features,
+        error: None,
         snap: None,
         input: vec![0.0; layout.input_len()],
         bodies: Vec::new(),
         warm: Vec::new(),
     };
-    let mut c = Columns { contact_offsets: vec![0], ..Columns::default() };
+    let mut c = Columns {
+        contact_offsets: vec![0],
+        ..Columns::default()
+    };
     let mut label = vec![0.0f32; layout.output_len()];
     for _ in 0..args.steps {
         let report = world.step(&mut rec, solver.as_mut(), position)?;
@@ -185,37 +222,41 @@ fn simulate_seed(
         if report.contacts == 0 || rec.snap != Some(report.step) {
             continue;
         }
-        rec.warm.sort_unstable_by(|a, b| a.0.cmp(&b.0));
+        if let Some(e) = rec.error.take() {
+            return Err(CliError::Usage(format!("seed {seed}: grid transfer: {e}")));
+        }
+        rec.warm.sort_unstable_by_key(|a| a.0);
         let finals = world.contacts();
         let raw = world.raw_contacts();
-        features::label_grids(
-            layout,
-            raw.iter().map(|r| {
-                let f = lookup(finals, &r.id);
-                (r.point, f.normal, f.tangent)
-            }),
-            &mut label,
-        );
+        labeler
+            .encode_world_labels(&world, &mut label)
+            .map_err(|e| CliError::Usage(format!("seed {seed}: grid transfer: {e}")))?;
         c.steps.push(report.step as i64);
         c.inputs.extend_from_slice(&rec.input);
         c.labels.extend_from_slice(&label);
         if c.body_mass.is_empty() {
-            c.body_mass.extend(rec.bodies.iter().map(|b| b.mass as f32));
+            c.body_mass.extend(rec.bodies.iter().map(|b| b.0));
         }
-        for b in &rec.bodies {
-            c.body_position.extend([b.position.x as f32, b.position.y as f32]);
-            c.body_velocity.extend([b.velocity.x as f32, b.velocity.y as f32]);
-            c.body_angular_velocity.push(b.angular_velocity as f32);
+        for (_, p, v, w) in &rec.bodies {
+            c.body_position.extend(p);
+            c.body_velocity.extend(v);
+            c.body_angular_velocity.push(*w);
         }
         for r in raw {
             let (w, f) = (lookup(&rec.warm, &r.id), lookup(finals, &r.id));
-            c.contact_position.extend([r.point.x as f32, r.point.y as f32]);
-            c.contact_bodies.extend([r.id.body_a as i32, r.id.body_b as i32]);
-            c.contact_normal.extend([r.normal.x as f32, r.normal.y as f32]);
-            c.contact_warm_start.extend([w.normal as f32, w.tangent as f32]);
-            c.contact_impulse.extend([f.normal as f32, f.tangent as f32]);
+            c.contact_position
+                .extend([r.point.x as f32, r.point.y as f32]);
+            c.contact_bodies
+                .extend([r.id.body_a as i32, r.id.body_b as i32]);
+            c.contact_normal
+                .extend([r.normal.x as f32, r.normal.y as f32]);
+            c.contact_warm_start
+                .extend([w.normal as f32, w.tangent as f32]);
+            c.contact_impulse
+                .extend([f.normal as f32, f.tangent as f32]);
         }
-        c.contact_offsets.push((c.contact_position.len() / 2) as i64);
+        c.contact_offsets
+            .push((c.contact_position.len() / 2) as i64);
     }
     Ok(c)
 }
@@ -231,7 +272,13 @@ fn i32_bytes(v: &[i32]) -> Vec<u8> {
 }
 
 /// The metadata header of a seed's file.
-fn metadata(seed: u64, args: &GenerateArgs, layout: &GridLayout, solver_spec: &str, c: &Columns) -> HashMap<String, String> {
+fn metadata(
+    seed: u64,
+    args: &GenerateArgs,
+    layout: &GridLayout,
+    solver_spec: &str,
+    c: &Columns,
+) -> HashMap<String, String> {
     let s = args.solver.world_settings();
     let mut m = HashMap::new();
     let mut put = |k: &str, v: String| {
@@ -258,34 +305,115 @@ fn metadata(seed: u64, args: &GenerateArgs, layout: &GridLayout, solver_spec: &s
         })
         .to_string(),
     );
-    put("grid_layout", layout.to_json().to_string());
-    put("input_channels", serde_json::to_string(&layout.input_channels).unwrap_or_default());
-    put("output_channels", serde_json::to_string(&layout.output_channels).unwrap_or_default());
-    put("label_source", "final impulses of the step (after the velocity solve)".into());
-    put("generator", format!("deepcontact {}", env!("CARGO_PKG_VERSION")));
+    put("grid_layout", layout.to_json());
+    put(
+        "input_channels",
+        serde_json::to_string(&layout.input_channels).unwrap_or_default(),
+    );
+    put(
+        "output_channels",
+        serde_json::to_string(&layout.output_channels).unwrap_or_default(),
+    );
+    put(
+        "label_source",
+        "final impulses of the step (after the velocity solve)".into(),
+    );
+    put(
+        "generator",
+        format!("deepcontact {}", env!("CARGO_PKG_VERSION")),
+    );
     m
 }
 
-fn write_seed(path: &Path, seed: u64, args: &GenerateArgs, layout: &GridLayout, solver_spec: &str, c: &Columns) -> Result<(), CliError> {
-    let (s, b, n) = (c.steps.len(), c.body_mass.len(), c.contact_position.len() / 2);
-    let (nx, ny) = (layout.nx, layout.ny);
+fn write_seed(
+    path: &Path,
+    seed: u64,
+    args: &GenerateArgs,
+    layout: &GridLayout,
+    solver_spec: &str,
+    c: &Columns,
+) -> Result<(), CliError> {
+    let (s, b, n) = (
+        c.steps.len(),
+        c.body_mass.len(),
+        c.contact_position.len() / 2,
+    );
+    let (nx, ny) = (layout.grid.nx, layout.grid.ny);
     let (ci, co) = (layout.input_channels.len(), layout.output_channels.len());
     let owned: Vec<(&str, Dtype, Vec<usize>, Vec<u8>)> = vec![
         ("steps", Dtype::I64, vec![s], i64_bytes(&c.steps)),
-        ("inputs", Dtype::F32, vec![s, ci, ny, nx], f32_bytes(&c.inputs)),
-        ("labels", Dtype::F32, vec![s, co, ny, nx], f32_bytes(&c.labels)),
+        (
+            "inputs",
+            Dtype::F32,
+            vec![s, ci, ny, nx],
+            f32_bytes(&c.inputs),
+        ),
+        (
+            "labels",
+            Dtype::F32,
+            vec![s, co, ny, nx],
+            f32_bytes(&c.labels),
+        ),
         ("body_mass", Dtype::F32, vec![b], f32_bytes(&c.body_mass)),
-        ("body_position", Dtype::F32, vec![s, b, 2], f32_bytes(&c.body_position)),
-        ("body_velocity", Dtype::F32, vec![s, b, 2], f32_bytes(&c.body_velocity)),
-        ("body_angular_velocity", Dtype::F32, vec![s, b], f32_bytes(&c.body_angular_velocity)),
-        ("contact_offsets", Dtype::I64, vec![s + 1], i64_bytes(&c.contact_offsets)),
-        ("contact_position", Dtype::F32, vec![n, 2], f32_bytes(&c.contact_position)),
-        ("contact_bodies", Dtype::I32, vec![n, 2], i32_bytes(&c.contact_bodies)),
-        ("contact_normal", Dtype::F32, vec![n, 2], f32_bytes(&c.contact_normal)),
-        ("contact_warm_start", Dtype::F32, vec![n, 2], f32_bytes(&c.contact_warm_start)),
-        ("contact_impulse", Dtype::F32, vec![n, 2], f32_bytes(&c.contact_impulse)),
+        (
+            "body_position",
+            Dtype::F32,
+            vec![s, b, 2],
+            f32_bytes(&c.body_position),
+        ),
+        (
+            "body_velocity",
+            Dtype::F32,
+            vec![s, b, 2],
+            f32_bytes(&c.body_velocity),
+        ),
+        (
+            "body_angular_velocity",
+            Dtype::F32,
+            vec![s, b],
+            f32_bytes(&c.body_angular_velocity),
+        ),
+        (
+            "contact_offsets",
+            Dtype::I64,
+            vec![s + 1],
+            i64_bytes(&c.contact_offsets),
+        ),
+        (
+            "contact_position",
+            Dtype::F32,
+            vec![n, 2],
+            f32_bytes(&c.contact_position),
+        ),
+        (
+            "contact_bodies",
+            Dtype::I32,
+            vec![n, 2],
+            i32_bytes(&c.contact_bodies),
+        ),
+        (
+            "contact_normal",
+            Dtype::F32,
+            vec![n, 2],
+            f32_bytes(&c.contact_normal),
+        ),
+        (
+            "contact_warm_start",
+            Dtype::F32,
+            vec![n, 2],
+            f32_bytes(&c.contact_warm_start),
+        ),
+        (
+            "contact_impulse",
+            Dtype::F32,
+            vec![n, 2],
+            f32_bytes(&c.contact_impulse),
+        ),
     ];
-    let io = |p: &Path, e: std::io::Error| CliError::Io { path: p.display().to_string(), source: e };
+    let io = |p: &Path, e: std::io::Error| CliError::Io {
+        path: p.display().to_string(),
+        source: e,
+    };
     let views = owned
         .iter()
         .map(|(name, dtype, shape, bytes)| {
@@ -295,8 +423,12 @@ fn write_seed(path: &Path, seed: u64, args: &GenerateArgs, layout: &GridLayout, 
         })
         .collect::<Result<Vec<_>, _>>()?;
     let tmp = path.with_extension(format!("tmp{}", std::process::id()));
-    safetensors::serialize_to_file(views, Some(metadata(seed, args, layout, solver_spec, c)), &tmp)
-        .map_err(|e| io(&tmp, std::io::Error::other(e.to_string())))?;
+    safetensors::serialize_to_file(
+        views,
+        Some(metadata(seed, args, layout, solver_spec, c)),
+        &tmp,
+    )
+    .map_err(|e| io(&tmp, std::io::Error::other(e.to_string())))?;
     std::fs::rename(&tmp, path).map_err(|e| io(path, e))
 }
 
@@ -344,21 +476,32 @@ pub fn run(args: GenerateArgs) -> Result<(), CliError> {
         let (k, n) = parse_shard(shard)?;
         seeds.retain(|s| s % n == k);
     }
-    std::fs::create_dir_all(&args.out).map_err(|e| CliError::Io { path: args.out.display().to_string(), source: e })?;
+    std::fs::create_dir_all(&args.out).map_err(|e| CliError::Io {
+        path: args.out.display().to_string(),
+        source: e,
+    })?;
     let solver_spec = args.solver.solver.clone();
     // Fail early on a bad solver spec.
     crate::common::registry().build_solver(&solver_spec)?;
     let todo: Vec<u64> = seeds
         .iter()
         .copied()
-        .filter(|&s| args.force || !is_complete(&seed_file(&args.out, s), s, args.steps, args.bodies))
+        .filter(|&s| {
+            args.force || !is_complete(&seed_file(&args.out, s), s, args.steps, args.bodies)
+        })
         .collect();
     let skipped = seeds.len() - todo.len();
-    let layout = GridLayout::default();
-    let bar = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(todo.len() as u64 * args.steps) };
+    let layout = GridLayout::thesis();
+    let bar = if args.quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(todo.len() as u64 * args.steps)
+    };
     bar.set_style(
-        ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} steps ({eta} left) {msg}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:40}] {pos}/{len} steps ({eta} left) {msg}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     let done = AtomicUsize::new(0);
     let pool = rayon::ThreadPoolBuilder::new()
@@ -369,7 +512,14 @@ pub fn run(args: GenerateArgs) -> Result<(), CliError> {
         todo.par_iter().try_for_each(|&seed| {
             let tick = || bar.inc(1);
             let c = simulate_seed(seed, &args, &layout, &solver_spec, &tick)?;
-            write_seed(&seed_file(&args.out, seed), seed, &args, &layout, &solver_spec, &c)?;
+            write_seed(
+                &seed_file(&args.out, seed),
+                seed,
+                &args,
+                &layout,
+                &solver_spec,
+                &c,
+            )?;
             let d = done.fetch_add(1, Ordering::Relaxed) + 1;
             bar.set_message(format!("{d}/{} seeds", todo.len()));
             Ok(())

@@ -41,7 +41,11 @@ impl Backend {
 
     /// The default backend of this build: tract when the `tract` feature is on, else ONNX Runtime.
     pub fn default_for_build() -> Self {
-        if cfg!(feature = "tract") { Backend::Tract } else { Backend::OnnxRuntime }
+        if cfg!(feature = "tract") {
+            Backend::Tract
+        } else {
+            Backend::OnnxRuntime
+        }
     }
 
     /// Whether this build can run the backend.
@@ -54,7 +58,10 @@ impl Backend {
 
     /// The backend that already owns this process, if a model was loaded.
     pub fn active() -> Option<Backend> {
-        RUNTIME.get().and_then(|r| r.as_ref().ok()).map(|r| r.backend)
+        RUNTIME
+            .get()
+            .and_then(|r| r.as_ref().ok())
+            .map(|r| r.backend)
     }
 }
 
@@ -71,7 +78,9 @@ impl FromStr for Backend {
         match s.trim().to_ascii_lowercase().as_str() {
             "tract" => Ok(Backend::Tract),
             "onnxruntime" | "ort" => Ok(Backend::OnnxRuntime),
-            _ => Err(OnnxError::UnknownBackend { name: s.to_string() }),
+            _ => Err(OnnxError::UnknownBackend {
+                name: s.to_string(),
+            }),
         }
     }
 }
@@ -91,7 +100,10 @@ fn init(backend: Backend) -> Result<Runtime, (Backend, String)> {
             #[cfg(feature = "tract")]
             {
                 ort::set_api(ort_tract::api());
-                let env = ort::init().with_name("deepcontact").build().map_err(|e| fail(e.to_string()))?;
+                let env = ort::init()
+                    .with_name("deepcontact")
+                    .build()
+                    .map_err(|e| fail(e.to_string()))?;
                 Ok(Runtime { backend, env })
             }
             #[cfg(not(feature = "tract"))]
@@ -102,13 +114,23 @@ fn init(backend: Backend) -> Result<Runtime, (Backend, String)> {
             {
                 let path = match std::env::var_os("ORT_DYLIB_PATH") {
                     Some(p) if !p.is_empty() => std::path::PathBuf::from(p),
-                    _ => return Err(fail("ORT_DYLIB_PATH is not set (point it at libonnxruntime.so)".into())),
+                    _ => {
+                        return Err(fail(
+                            "ORT_DYLIB_PATH is not set (point it at libonnxruntime.so)".into(),
+                        ));
+                    }
                 };
                 if !path.exists() {
-                    return Err(fail(format!("ORT_DYLIB_PATH={} does not exist", path.display())));
+                    return Err(fail(format!(
+                        "ORT_DYLIB_PATH={} does not exist",
+                        path.display()
+                    )));
                 }
                 let builder = ort::init_from(&path).map_err(|e| fail(e.to_string()))?;
-                let env = builder.with_name("deepcontact").build().map_err(|e| fail(e.to_string()))?;
+                let env = builder
+                    .with_name("deepcontact")
+                    .build()
+                    .map_err(|e| fail(e.to_string()))?;
                 Ok(Runtime { backend, env })
             }
             #[cfg(not(all(feature = "load-dynamic", not(feature = "tract"))))]
@@ -127,17 +149,30 @@ fn runtime(backend: Backend) -> Result<&'static Runtime, OnnxError> {
     if !backend.is_available() {
         // Do not claim the process for a backend that cannot work.
         return Err(match init(backend) {
-            Err((_, reason)) => OnnxError::BackendUnavailable { backend: backend.name(), reason },
-            Ok(_) => OnnxError::BackendUnavailable { backend: backend.name(), reason: "not compiled in".into() },
+            Err((_, reason)) => OnnxError::BackendUnavailable {
+                backend: backend.name(),
+                reason,
+            },
+            Ok(_) => OnnxError::BackendUnavailable {
+                backend: backend.name(),
+                reason: "not compiled in".into(),
+            },
         });
     }
     match RUNTIME.get_or_init(|| init(backend)) {
         Ok(rt) if rt.backend == backend => Ok(rt),
-        Ok(rt) => Err(OnnxError::BackendConflict { active: rt.backend.name(), requested: backend.name() }),
-        Err((b, reason)) if *b == backend => {
-            Err(OnnxError::BackendInit { backend: backend.name(), reason: reason.clone() })
-        }
-        Err((b, _)) => Err(OnnxError::BackendConflict { active: b.name(), requested: backend.name() }),
+        Ok(rt) => Err(OnnxError::BackendConflict {
+            active: rt.backend.name(),
+            requested: backend.name(),
+        }),
+        Err((b, reason)) if *b == backend => Err(OnnxError::BackendInit {
+            backend: backend.name(),
+            reason: reason.clone(),
+        }),
+        Err((b, _)) => Err(OnnxError::BackendConflict {
+            active: b.name(),
+            requested: backend.name(),
+        }),
     }
 }
 
@@ -150,7 +185,11 @@ pub(crate) fn session(
     threads: usize,
 ) -> Result<Session, OnnxError> {
     let rt = runtime(backend)?;
-    let invalid = |reason: String| OnnxError::ModelInvalid { path: path.to_path_buf(), backend: backend.name(), reason };
+    let invalid = |reason: String| OnnxError::ModelInvalid {
+        path: path.to_path_buf(),
+        backend: backend.name(),
+        reason,
+    };
     let mut builder = Session::builder(&rt.env)
         .map_err(|e| invalid(e.to_string()))?
         .with_optimization_level(GraphOptimizationLevel::Level3)
@@ -162,5 +201,7 @@ pub(crate) fn session(
             .with_inter_threads(1)
             .map_err(|e| invalid(e.to_string()))?;
     }
-    builder.commit_from_memory(model).map_err(|e| invalid(e.to_string()))
+    builder
+        .commit_from_memory(model)
+        .map_err(|e| invalid(e.to_string()))
 }

@@ -72,20 +72,32 @@ pub struct LayoutExpectation {
 impl LayoutExpectation {
     /// Expected input shape `[1, C_in, ny, nx]`.
     pub fn input_shape(&self) -> Vec<i64> {
-        vec![1, self.input_channels.len() as i64, self.ny as i64, self.nx as i64]
+        vec![
+            1,
+            self.input_channels.len() as i64,
+            self.ny as i64,
+            self.nx as i64,
+        ]
     }
 
     /// Expected output shape `[1, C_out, ny, nx]`.
     pub fn output_shape(&self) -> Vec<i64> {
-        vec![1, self.output_channels.len() as i64, self.ny as i64, self.nx as i64]
+        vec![
+            1,
+            self.output_channels.len() as i64,
+            self.ny as i64,
+            self.nx as i64,
+        ]
     }
 }
 
 impl ModelCard {
     /// Parses a card from JSON text; `path` only names it in errors.
     pub fn from_json(text: &str, path: &Path) -> Result<Self, OnnxError> {
-        let card: ModelCard = serde_json::from_str(text)
-            .map_err(|e| OnnxError::CardInvalid { path: path.to_path_buf(), reason: e.to_string() })?;
+        let card: ModelCard = serde_json::from_str(text).map_err(|e| OnnxError::CardInvalid {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        })?;
         if card.format != CARD_FORMAT {
             return Err(OnnxError::CardInvalid {
                 path: path.to_path_buf(),
@@ -95,7 +107,10 @@ impl ModelCard {
         if card.format_version != CARD_FORMAT_VERSION {
             return Err(OnnxError::CardInvalid {
                 path: path.to_path_buf(),
-                reason: format!("format_version is {}, this build reads {CARD_FORMAT_VERSION}", card.format_version),
+                reason: format!(
+                    "format_version is {}, this build reads {CARD_FORMAT_VERSION}",
+                    card.format_version
+                ),
             });
         }
         Ok(card)
@@ -104,8 +119,13 @@ impl ModelCard {
     /// Reads a card from a file.
     pub fn load(path: &Path) -> Result<Self, OnnxError> {
         let text = std::fs::read_to_string(path).map_err(|e| match e.kind() {
-            std::io::ErrorKind::NotFound => OnnxError::CardMissing { path: path.to_path_buf() },
-            _ => OnnxError::Io { path: path.to_path_buf(), source: e },
+            std::io::ErrorKind::NotFound => OnnxError::CardMissing {
+                path: path.to_path_buf(),
+            },
+            _ => OnnxError::Io {
+                path: path.to_path_buf(),
+                source: e,
+            },
         })?;
         Self::from_json(&text, path)
     }
@@ -117,38 +137,66 @@ impl ModelCard {
         check_channels("output", &layout.output_channels, &self.output.channels)?;
         check_shape("card input", &layout.input_shape(), &self.input.shape)?;
         check_shape("card output", &layout.output_shape(), &self.output.shape)?;
-        if let Some((field, expected, found)) = first_difference("grid_layout", &layout.json, &self.grid_layout) {
-            return Err(OnnxError::GridMismatch { field, expected, found });
+        if let Some((field, expected, found)) =
+            first_difference("grid_layout", &layout.json, &self.grid_layout)
+        {
+            return Err(OnnxError::GridMismatch {
+                field,
+                expected,
+                found,
+            });
         }
         Ok(())
     }
 }
 
-fn check_channels(tensor: &'static str, expected: &[String], found: &[String]) -> Result<(), OnnxError> {
+fn check_channels(
+    tensor: &'static str,
+    expected: &[String],
+    found: &[String],
+) -> Result<(), OnnxError> {
     for (index, (e, f)) in expected.iter().zip(found).enumerate() {
         if e != f {
-            return Err(OnnxError::ChannelMismatch { tensor, index, expected: e.clone(), found: f.clone() });
+            return Err(OnnxError::ChannelMismatch {
+                tensor,
+                index,
+                expected: e.clone(),
+                found: f.clone(),
+            });
         }
     }
     if expected.len() != found.len() {
-        return Err(OnnxError::ChannelCount { tensor, expected: expected.len(), found: found.len() });
+        return Err(OnnxError::ChannelCount {
+            tensor,
+            expected: expected.len(),
+            found: found.len(),
+        });
     }
     Ok(())
 }
 
 /// Checks a shape; a `-1` in `found` (a dynamic dimension) matches anything.
 pub(crate) fn check_shape(what: &str, expected: &[i64], found: &[i64]) -> Result<(), OnnxError> {
-    let ok = expected.len() == found.len() && expected.iter().zip(found).all(|(e, f)| *f == -1 || e == f);
+    let ok = expected.len() == found.len()
+        && expected.iter().zip(found).all(|(e, f)| *f == -1 || e == f);
     if ok {
         Ok(())
     } else {
-        Err(OnnxError::ShapeMismatch { what: what.to_string(), expected: expected.to_vec(), found: found.to_vec() })
+        Err(OnnxError::ShapeMismatch {
+            what: what.to_string(),
+            expected: expected.to_vec(),
+            found: found.to_vec(),
+        })
     }
 }
 
 /// The JSON path and both values of the first difference between two JSON values, if any.
 /// Numbers compare with a relative tolerance of 1e-9 (a layout written by Python round-trips).
-pub(crate) fn first_difference(path: &str, expected: &Value, found: &Value) -> Option<(String, String, String)> {
+pub(crate) fn first_difference(
+    path: &str,
+    expected: &Value,
+    found: &Value,
+) -> Option<(String, String, String)> {
     let differ = || Some((path.to_string(), expected.to_string(), found.to_string()));
     match (expected, found) {
         (Value::Object(e), Value::Object(f)) => {
@@ -163,7 +211,9 @@ pub(crate) fn first_difference(path: &str, expected: &Value, found: &Value) -> O
                     None => return Some((sub, ev.to_string(), "nothing".into())),
                 }
             }
-            f.keys().find(|k| !e.contains_key(*k)).map(|k| (format!("{path}.{k}"), "nothing".into(), f[k].to_string()))
+            f.keys()
+                .find(|k| !e.contains_key(*k))
+                .map(|k| (format!("{path}.{k}"), "nothing".into(), f[k].to_string()))
         }
         (Value::Array(e), Value::Array(f)) => {
             for (i, (ev, fv)) in e.iter().zip(f).enumerate() {
@@ -172,7 +222,11 @@ pub(crate) fn first_difference(path: &str, expected: &Value, found: &Value) -> O
                 }
             }
             if e.len() != f.len() {
-                return Some((format!("{path}.len()"), e.len().to_string(), f.len().to_string()));
+                return Some((
+                    format!("{path}.len()"),
+                    e.len().to_string(),
+                    f.len().to_string(),
+                ));
             }
             None
         }

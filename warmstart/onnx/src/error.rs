@@ -116,7 +116,9 @@ pub enum OnnxError {
         reason: String,
     },
     /// Another backend already owns this process (ort's API is process-global).
-    #[error("backend `{requested}` requested, but this process already runs `{active}` (one backend per process)")]
+    #[error(
+        "backend `{requested}` requested, but this process already runs `{active}` (one backend per process)"
+    )]
     BackendConflict {
         /// The backend initialised first.
         active: &'static str,

@@ -16,7 +16,9 @@
 #![warn(missing_docs)]
 
 #[cfg(not(any(feature = "tract", feature = "load-dynamic")))]
-compile_error!("deepcontact-onnx needs a backend: enable the `tract` (default) or the `load-dynamic` feature");
+compile_error!(
+    "deepcontact-onnx needs a backend: enable the `tract` (default) or the `load-dynamic` feature"
+);
 
 pub mod backend;
 pub mod card;
@@ -29,7 +31,7 @@ mod registry;
 pub use backend::Backend;
 pub use card::{LayoutExpectation, ModelCard, TensorCard};
 pub use error::OnnxError;
-pub use features::GridLayout;
+pub use features::{GridFeatures, GridLayout};
 pub use model::{ModelSource, OnnxModel};
-pub use provider::{CnnWarmStart, ProviderOptions, ShippedModel, PEAK, PRESSURE};
+pub use provider::{CnnWarmStart, PEAK, PRESSURE, ProviderOptions, ShippedModel};
 pub use registry::register;

@@ -46,18 +46,31 @@ impl OnnxModel {
     /// Loads a model and its card, and checks both against `layout`:
     /// card channels and shapes, card grid layout, then the model's real input/output
     /// shapes and element types. Any difference is a typed error naming it.
-    pub fn load(source: ModelSource<'_>, backend: Backend, layout: &LayoutExpectation) -> Result<Self, OnnxError> {
+    pub fn load(
+        source: ModelSource<'_>,
+        backend: Backend,
+        layout: &LayoutExpectation,
+    ) -> Result<Self, OnnxError> {
         let (bytes, card, path): (std::borrow::Cow<'_, [u8]>, ModelCard, PathBuf) = match source {
             ModelSource::Files { model, card } => {
-                let card_path = card.map(Path::to_path_buf).unwrap_or_else(|| model.with_extension("json"));
+                let card_path = card
+                    .map(Path::to_path_buf)
+                    .unwrap_or_else(|| model.with_extension("json"));
                 if !model.exists() {
-                    return Err(OnnxError::ModelMissing { path: model.to_path_buf() });
+                    return Err(OnnxError::ModelMissing {
+                        path: model.to_path_buf(),
+                    });
                 }
                 let card = ModelCard::load(&card_path)?;
                 card.check_layout(layout)?;
                 let bytes = std::fs::read(model).map_err(|e| match e.kind() {
-                    std::io::ErrorKind::NotFound => OnnxError::ModelMissing { path: model.to_path_buf() },
-                    _ => OnnxError::Io { path: model.to_path_buf(), source: e },
+                    std::io::ErrorKind::NotFound => OnnxError::ModelMissing {
+                        path: model.to_path_buf(),
+                    },
+                    _ => OnnxError::Io {
+                        path: model.to_path_buf(),
+                        source: e,
+                    },
                 })?;
                 (bytes.into(), card, model.to_path_buf())
             }
@@ -69,11 +82,19 @@ impl OnnxModel {
             }
         };
         if bytes.is_empty() {
-            return Err(OnnxError::ModelInvalid { path, backend: backend.name(), reason: "empty file".into() });
+            return Err(OnnxError::ModelInvalid {
+                path,
+                backend: backend.name(),
+                reason: "empty file".into(),
+            });
         }
         let session = backend::session(backend, &bytes, &path, 1)?;
         if session.inputs().len() != 1 || session.outputs().len() != 1 {
-            return Err(OnnxError::Arity { path, inputs: session.inputs().len(), outputs: session.outputs().len() });
+            return Err(OnnxError::Arity {
+                path,
+                inputs: session.inputs().len(),
+                outputs: session.outputs().len(),
+            });
         }
         for (what, outlet, expected) in [
             ("model input", &session.inputs()[0], layout.input_shape()),
@@ -82,16 +103,38 @@ impl OnnxModel {
             let dtype = outlet.dtype();
             match dtype.tensor_type() {
                 Some(TensorElementType::Float32) => {}
-                Some(t) => return Err(OnnxError::ElementType { what: what.into(), found: t.to_string() }),
-                None => return Err(OnnxError::ElementType { what: what.into(), found: dtype.to_string() }),
+                Some(t) => {
+                    return Err(OnnxError::ElementType {
+                        what: what.into(),
+                        found: t.to_string(),
+                    });
+                }
+                None => {
+                    return Err(OnnxError::ElementType {
+                        what: what.into(),
+                        found: dtype.to_string(),
+                    });
+                }
             }
             let shape: Vec<i64> = dtype.tensor_shape().map(|s| s.to_vec()).unwrap_or_default();
             check_shape(what, &expected, &shape)?;
         }
         let input_shape = layout.input_shape();
-        let input_shape = [input_shape[0] as usize, input_shape[1] as usize, input_shape[2] as usize, input_shape[3] as usize];
+        let input_shape = [
+            input_shape[0] as usize,
+            input_shape[1] as usize,
+            input_shape[2] as usize,
+            input_shape[3] as usize,
+        ];
         let output_len = layout.output_shape().iter().product::<i64>() as usize;
-        Ok(Self { session, card, backend, path, input_shape, output_len })
+        Ok(Self {
+            session,
+            card,
+            backend,
+            path,
+            input_shape,
+            output_len,
+        })
     }
 
     /// The model's card.
@@ -136,7 +179,9 @@ impl OnnxModel {
                 found: vec![output.len() as i64],
             });
         }
-        let fail = |e: ort::Error| OnnxError::Inference { reason: e.to_string() };
+        let fail = |e: ort::Error| OnnxError::Inference {
+            reason: e.to_string(),
+        };
         let tensor = TensorRef::from_array_view((self.input_shape, input)).map_err(fail)?;
         let outputs = self.session.run(ort::inputs![tensor]).map_err(fail)?;
         let (_, data) = outputs[0].try_extract_tensor::<f32>().map_err(fail)?;

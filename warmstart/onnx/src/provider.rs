@@ -2,11 +2,11 @@
 
 use std::path::{Path, PathBuf};
 
-use deepcontact_core::{ContactId, Impulse, Real, Vector, WarmStart, WarmStartContext, WarmStartError};
+use deepcontact_core::{ContactId, Impulse, Vector, WarmStart, WarmStartContext, WarmStartError};
 
 use crate::backend::Backend;
 use crate::error::OnnxError;
-use crate::features::{self, BodyParticle, GridLayout};
+use crate::features::{self, GridFeatures, GridLayout};
 use crate::model::{ModelSource, OnnxModel};
 
 /// A model shipped in the repository's `models/` directory.
@@ -19,9 +19,15 @@ pub struct ShippedModel {
 }
 
 /// The shipped Pressure model (`models/pressure.onnx`).
-pub const PRESSURE: ShippedModel = ShippedModel { name: "pressure", file: "pressure.onnx" };
+pub const PRESSURE: ShippedModel = ShippedModel {
+    name: "pressure",
+    file: "pressure.onnx",
+};
 /// The shipped Peak model (`models/peak.onnx`).
-pub const PEAK: ShippedModel = ShippedModel { name: "peak", file: "peak.onnx" };
+pub const PEAK: ShippedModel = ShippedModel {
+    name: "peak",
+    file: "peak.onnx",
+};
 
 impl ShippedModel {
     /// The models directory: `$DEEPCONTACT_MODELS_DIR` if set, else the workspace's `models/`
@@ -29,7 +35,10 @@ impl ShippedModel {
     pub fn models_dir() -> PathBuf {
         match std::env::var_os("DEEPCONTACT_MODELS_DIR") {
             Some(d) if !d.is_empty() => PathBuf::from(d),
-            _ => Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join("..").join("models"),
+            _ => Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("..")
+                .join("..")
+                .join("models"),
         }
     }
 
@@ -48,7 +57,9 @@ pub struct ProviderOptions {
 
 impl Default for ProviderOptions {
     fn default() -> Self {
-        Self { backend: Backend::default_for_build() }
+        Self {
+            backend: Backend::default_for_build(),
+        }
     }
 }
 
@@ -66,10 +77,12 @@ impl Default for ProviderOptions {
 pub struct CnnWarmStart {
     name: String,
     model: OnnxModel,
-    layout: GridLayout,
+    features: GridFeatures,
     input: Vec<f32>,
     output: Vec<f32>,
-    node_weight: Vec<Real>,
+    ids: Vec<ContactId>,
+    positions: Vec<Vector>,
+    impulses: Vec<Impulse>,
     /// Predictions of the current step, sorted by contact id.
     predicted: Vec<(ContactId, Impulse)>,
     /// Step index `predicted` belongs to.
@@ -78,25 +91,38 @@ pub struct CnnWarmStart {
 
 impl CnnWarmStart {
     /// Loads a model (checked against the thesis grid layout) as a provider called `name`.
-    pub fn new(name: &str, source: ModelSource<'_>, options: ProviderOptions) -> Result<Self, OnnxError> {
-        let layout = GridLayout::default();
-        let model = OnnxModel::load(source, options.backend, &layout.expectation())?;
+    pub fn new(
+        name: &str,
+        source: ModelSource<'_>,
+        options: ProviderOptions,
+    ) -> Result<Self, OnnxError> {
+        let layout = GridLayout::thesis();
+        let model = OnnxModel::load(source, options.backend, &features::expectation(&layout))?;
         Ok(Self {
             name: name.to_string(),
             input: vec![0.0; layout.input_len()],
             output: vec![0.0; layout.output_len()],
-            node_weight: vec![0.0; layout.nodes()],
+            ids: Vec::new(),
+            positions: Vec::new(),
+            impulses: Vec::new(),
             predicted: Vec::new(),
             step: None,
             model,
-            layout,
+            features: GridFeatures::new(layout)?,
         })
     }
 
     /// A shipped model from the models directory.
     pub fn shipped(model: ShippedModel, options: ProviderOptions) -> Result<Self, OnnxError> {
         let path = model.path();
-        Self::new(model.name, ModelSource::Files { model: &path, card: None }, options)
+        Self::new(
+            model.name,
+            ModelSource::Files {
+                model: &path,
+                card: None,
+            },
+            options,
+        )
     }
 
     /// The model.
@@ -106,7 +132,7 @@ impl CnnWarmStart {
 
     /// The grid layout.
     pub fn layout(&self) -> &GridLayout {
-        &self.layout
+        self.features.layout()
     }
 
     /// The last input grids (`[6, ny, nx]`).
@@ -119,28 +145,24 @@ impl CnnWarmStart {
         &self.output
     }
 
-    /// Runs the model on the current input grids and reads the output at `points`
-    /// (`(id, position)`), replacing `self.predicted`.
-    fn predict(&mut self, points: &[(ContactId, Vector)]) -> Result<(), WarmStartError> {
-        self.model.run(&self.input, &mut self.output).map_err(|e| WarmStartError::Provider(e.to_string()))?;
-        self.node_weight.fill(0.0);
-        self.layout.gather_weights(points.iter().map(|p| p.1), &mut self.node_weight);
-        let (normal, tangent) = self.output.split_at(self.layout.nodes());
+    /// Runs the model on the current input grids and reads the output at `self.positions`
+    /// (ids in `self.ids`), replacing `self.predicted`.
+    fn predict(&mut self) -> Result<(), WarmStartError> {
+        let fail = |e: OnnxError| WarmStartError::Provider(e.to_string());
+        self.model
+            .run(&self.input, &mut self.output)
+            .map_err(fail)?;
+        self.impulses.clear();
+        self.impulses.resize(self.positions.len(), Impulse::ZERO);
+        self.features
+            .decode(&self.output, &self.positions, &mut self.impulses)
+            .map_err(fail)?;
         self.predicted.clear();
-        for (point, &(id, p)) in points.iter().enumerate() {
-            let [n, t] = self.layout.gather(&p, [normal, tangent], &self.node_weight);
-            if !(n.is_finite() && t.is_finite()) {
-                return Err(WarmStartError::NonFinite { point, normal: n, tangent: t });
-            }
-            self.predicted.push((id, Impulse::new(n.max(0.0), t)));
-        }
-        self.predicted.sort_unstable_by(|a, b| a.0.cmp(&b.0));
+        self.predicted
+            .extend(self.ids.iter().copied().zip(self.impulses.iter().copied()));
+        self.predicted.sort_unstable_by_key(|a| a.0);
         Ok(())
     }
-}
-
-thread_local! {
-    static POINTS: std::cell::RefCell<Vec<(ContactId, Vector)>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
 impl WarmStart for CnnWarmStart {
@@ -148,42 +170,49 @@ impl WarmStart for CnnWarmStart {
         &self.name
     }
 
-    fn warm_start(&mut self, ctx: &WarmStartContext<'_>, out: &mut [Impulse]) -> Result<(), WarmStartError> {
+    fn warm_start(
+        &mut self,
+        ctx: &WarmStartContext<'_>,
+        out: &mut [Impulse],
+    ) -> Result<(), WarmStartError> {
         if out.len() != ctx.problem.points.len() {
-            return Err(WarmStartError::WrongLength { expected: ctx.problem.points.len(), got: out.len() });
+            return Err(WarmStartError::WrongLength {
+                expected: ctx.problem.points.len(),
+                got: out.len(),
+            });
         }
-        POINTS.with_borrow_mut(|points| -> Result<(), WarmStartError> {
-            match ctx.world {
-                Some(world) => {
-                    if ctx.island == 0 || self.step != Some(ctx.step) {
-                        features::world_input_grids(&self.layout, world, &mut self.input);
-                        points.clear();
-                        points.extend(world.raw_contacts().iter().map(|c| (c.id, c.point)));
-                        self.predict(points)?;
-                        self.step = Some(ctx.step);
+        let fail = |e: OnnxError| WarmStartError::Provider(e.to_string());
+        match ctx.world {
+            Some(world) => {
+                if ctx.island == 0 || self.step != Some(ctx.step) {
+                    self.features
+                        .encode_world(world, &mut self.input)
+                        .map_err(fail)?;
+                    self.ids.clear();
+                    self.positions.clear();
+                    for c in world.raw_contacts() {
+                        self.ids.push(c.id);
+                        self.positions.push(c.point);
                     }
-                }
-                None => {
-                    let p = ctx.problem;
-                    features::input_grids(
-                        &self.layout,
-                        p.bodies.iter().filter(|b| b.inv_mass > 0.0).map(|b| BodyParticle {
-                            position: b.position,
-                            mass: 1.0 / b.inv_mass,
-                            velocity: b.linear_velocity,
-                            angular_velocity: b.angular_velocity,
-                        }),
-                        p.points.iter().map(|c| (c.point, c.normal)),
-                        &mut self.input,
-                    );
-                    points.clear();
-                    points.extend(p.points.iter().map(|c| (c.id, c.point)));
-                    self.predict(points)?;
-                    self.step = None;
+                    self.predict()?;
+                    self.step = Some(ctx.step);
                 }
             }
-            Ok(())
-        })?;
+            None => {
+                let p = ctx.problem;
+                self.features
+                    .encode_problem(p, &mut self.input)
+                    .map_err(fail)?;
+                self.ids.clear();
+                self.positions.clear();
+                for c in &p.points {
+                    self.ids.push(c.id);
+                    self.positions.push(c.point);
+                }
+                self.predict()?;
+                self.step = None;
+            }
+        }
         for (o, point) in out.iter_mut().zip(&ctx.problem.points) {
             *o = match self.predicted.binary_search_by(|(k, _)| k.cmp(&point.id)) {
                 Ok(i) => self.predicted[i].1,

@@ -11,24 +11,31 @@ use crate::provider::{CnnWarmStart, PEAK, PRESSURE, ProviderOptions, ShippedMode
 fn options(p: &mut Params<'_>) -> Result<ProviderOptions, WarmstartError> {
     let mut options = ProviderOptions::default();
     if let Some(v) = p.string("backend") {
-        options.backend = v.parse::<Backend>().map_err(|e| WarmstartError::InvalidParameter {
-            spec: p.name().to_string(),
-            param: "backend".into(),
-            value: v.into(),
-            reason: e.to_string(),
-        })?;
+        options.backend = v
+            .parse::<Backend>()
+            .map_err(|e| WarmstartError::InvalidParameter {
+                spec: p.name().to_string(),
+                param: "backend".into(),
+                value: v.into(),
+                reason: e.to_string(),
+            })?;
     }
     Ok(options)
 }
 
 fn build_error(spec: &str, e: crate::OnnxError) -> WarmstartError {
-    WarmstartError::Build { spec: spec.to_string(), reason: e.to_string() }
+    WarmstartError::Build {
+        spec: spec.to_string(),
+        reason: e.to_string(),
+    }
 }
 
 fn shipped(registry: &mut Registry, model: ShippedModel, help: &str) {
     registry.register_provider(model.name, help, move |p, _| {
         let options = options(p)?;
-        Ok(Box::new(CnnWarmStart::shipped(model, options).map_err(|e| build_error(model.name, e))?))
+        Ok(Box::new(
+            CnnWarmStart::shipped(model, options).map_err(|e| build_error(model.name, e))?,
+        ))
     });
 }
 

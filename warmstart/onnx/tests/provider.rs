@@ -7,11 +7,18 @@
 
 use std::path::{Path, PathBuf};
 
-use deepcontact_core::{GuardPolicy, Impulse, WarmStart, WarmStartContext, WarmStartError, WorldSettings};
-use deepcontact_onnx::{Backend, CnnWarmStart, GridLayout, ModelSource, OnnxError, OnnxModel, ProviderOptions};
+use deepcontact_core::{
+    GuardPolicy, Impulse, WarmStart, WarmStartContext, WarmStartError, WorldSettings,
+};
+use deepcontact_onnx::{
+    Backend, CnnWarmStart, GridLayout, ModelSource, OnnxError, OnnxModel, ProviderOptions,
+};
 
 fn data(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests").join("data").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests")
+        .join("data")
+        .join(name)
 }
 
 fn backend() -> Backend {
@@ -31,9 +38,12 @@ fn load(model: &str, card: Option<&str>) -> Result<OnnxModel, OnnxError> {
     let model = data(model);
     let card = card.map(data);
     OnnxModel::load(
-        ModelSource::Files { model: &model, card: card.as_deref() },
+        ModelSource::Files {
+            model: &model,
+            card: card.as_deref(),
+        },
         backend(),
-        &GridLayout::default().expectation(),
+        &deepcontact_onnx::features::expectation(&GridLayout::thesis()),
     )
 }
 
@@ -43,7 +53,8 @@ fn reference_input() -> Vec<f32> {
     for c in 0..6 {
         for j in 0..61 {
             for i in 0..61 {
-                let v = (0.1 * (c + 1) as f64 * i as f64).sin() * (0.07 * j as f64).cos() + 0.1 * c as f64;
+                let v = (0.1 * (c + 1) as f64 * i as f64).sin() * (0.07 * j as f64).cos()
+                    + 0.1 * c as f64;
                 x.push(v as f32);
             }
         }
@@ -53,18 +64,32 @@ fn reference_input() -> Vec<f32> {
 
 fn reference_output() -> Vec<f32> {
     let bytes = std::fs::read(data("tiny_reference.bin")).unwrap();
-    bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
+    bytes
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect()
 }
 
 fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
-    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max)
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max)
 }
 
 #[test]
 fn swapped_channels_in_card_are_named() {
     match load("tiny.onnx", Some("tiny_swapped_channels.json")) {
-        Err(OnnxError::ChannelMismatch { tensor, index, expected, found }) => {
-            assert_eq!((tensor, index, expected.as_str(), found.as_str()), ("input", 1, "vx", "vy"));
+        Err(OnnxError::ChannelMismatch {
+            tensor,
+            index,
+            expected,
+            found,
+        }) => {
+            assert_eq!(
+                (tensor, index, expected.as_str(), found.as_str()),
+                ("input", 1, "vx", "vy")
+            );
         }
         other => panic!("expected ChannelMismatch, got {other:?}"),
     }
@@ -73,7 +98,11 @@ fn swapped_channels_in_card_are_named() {
 #[test]
 fn wrong_card_shape_is_named() {
     match load("tiny.onnx", Some("tiny_wrong_shape.json")) {
-        Err(OnnxError::ShapeMismatch { what, expected, found }) => {
+        Err(OnnxError::ShapeMismatch {
+            what,
+            expected,
+            found,
+        }) => {
             assert_eq!(what, "card input");
             assert_eq!(expected, vec![1, 6, 61, 61]);
             assert_eq!(found, vec![1, 6, 64, 64]);
@@ -88,7 +117,11 @@ fn model_with_wrong_output_channels_is_rejected() {
         return;
     }
     match load("wrong_output.onnx", None) {
-        Err(OnnxError::ShapeMismatch { what, expected, found }) => {
+        Err(OnnxError::ShapeMismatch {
+            what,
+            expected,
+            found,
+        }) => {
             assert_eq!(what, "model output");
             assert_eq!(expected, vec![1, 2, 61, 61]);
             assert_eq!(found, vec![1, 3, 61, 61]);
@@ -99,17 +132,27 @@ fn model_with_wrong_output_channels_is_rejected() {
 
 #[test]
 fn card_grid_layout_difference_is_named() {
-    let card = std::fs::read_to_string(data("tiny.json")).unwrap().replace("\"spacing\": 0.25", "\"spacing\": 0.125");
+    let card = std::fs::read_to_string(data("tiny.json"))
+        .unwrap()
+        .replace("\"spacing\": 0.25", "\"spacing\": 0.125");
     let model = std::fs::read(data("tiny.onnx")).unwrap();
     let err = OnnxModel::load(
-        ModelSource::Memory { model: &model, card: &card, name: "tiny" },
+        ModelSource::Memory {
+            model: &model,
+            card: &card,
+            name: "tiny",
+        },
         backend(),
-        &GridLayout::default().expectation(),
+        &deepcontact_onnx::features::expectation(&GridLayout::thesis()),
     )
     .unwrap_err();
     match err {
-        OnnxError::GridMismatch { field, expected, found } => {
-            assert_eq!(field, "grid_layout.spacing");
+        OnnxError::GridMismatch {
+            field,
+            expected,
+            found,
+        } => {
+            assert_eq!(field, "grid_layout.grid.spacing");
             assert_eq!((expected.as_str(), found.as_str()), ("0.25", "0.125"));
         }
         other => panic!("expected GridMismatch, got {other:?}"),
@@ -121,24 +164,48 @@ fn missing_and_corrupt_files_are_typed_errors() {
     if cannot_run() {
         return;
     }
-    assert!(matches!(load("nope.onnx", Some("tiny.json")), Err(OnnxError::ModelMissing { .. })));
+    assert!(matches!(
+        load("nope.onnx", Some("tiny.json")),
+        Err(OnnxError::ModelMissing { .. })
+    ));
     let dir = std::env::temp_dir().join(format!("deepcontact-onnx-test-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     // A model without a card.
     let lonely = dir.join("lonely.onnx");
     std::fs::copy(data("tiny.onnx"), &lonely).unwrap();
-    let layout = GridLayout::default().expectation();
-    let r = OnnxModel::load(ModelSource::Files { model: &lonely, card: None }, backend(), &layout);
+    let layout = deepcontact_onnx::features::expectation(&GridLayout::thesis());
+    let r = OnnxModel::load(
+        ModelSource::Files {
+            model: &lonely,
+            card: None,
+        },
+        backend(),
+        &layout,
+    );
     assert!(matches!(r, Err(OnnxError::CardMissing { .. })), "{r:?}");
     // A corrupt model with a valid card.
     let corrupt = dir.join("corrupt.onnx");
     std::fs::write(&corrupt, b"this is not an onnx protobuf \x00\x01\x02\xff").unwrap();
     std::fs::copy(data("tiny.json"), dir.join("corrupt.json")).unwrap();
-    let r = OnnxModel::load(ModelSource::Files { model: &corrupt, card: None }, backend(), &layout);
+    let r = OnnxModel::load(
+        ModelSource::Files {
+            model: &corrupt,
+            card: None,
+        },
+        backend(),
+        &layout,
+    );
     assert!(matches!(r, Err(OnnxError::ModelInvalid { .. })), "{r:?}");
     // A corrupt card.
     std::fs::write(dir.join("lonely.json"), b"{ not json").unwrap();
-    let r = OnnxModel::load(ModelSource::Files { model: &lonely, card: None }, backend(), &layout);
+    let r = OnnxModel::load(
+        ModelSource::Files {
+            model: &lonely,
+            card: None,
+        },
+        backend(),
+        &layout,
+    );
     assert!(matches!(r, Err(OnnxError::CardInvalid { .. })), "{r:?}");
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -148,11 +215,18 @@ fn unknown_backend_and_registry_errors() {
     if cannot_run() {
         return;
     }
-    assert!(matches!("nope".parse::<Backend>(), Err(OnnxError::UnknownBackend { .. })));
+    assert!(matches!(
+        "nope".parse::<Backend>(),
+        Err(OnnxError::UnknownBackend { .. })
+    ));
     let mut registry = deepcontact_warmstart::Registry::with_defaults();
     deepcontact_onnx::register(&mut registry);
     assert!(registry.build_provider("onnx").is_err());
-    assert!(registry.build_provider("onnx:path=/does/not/exist.onnx").is_err());
+    assert!(
+        registry
+            .build_provider("onnx:path=/does/not/exist.onnx")
+            .is_err()
+    );
     assert!(registry.build_provider("pressure:backend=nope").is_err());
     let spec = format!("onnx:path={},name=tiny", data("tiny.onnx").display());
     let p = registry.build_provider(&spec).unwrap();
@@ -170,7 +244,11 @@ impl WarmStart for Checked {
     fn name(&self) -> &str {
         self.inner.name()
     }
-    fn warm_start(&mut self, ctx: &WarmStartContext<'_>, out: &mut [Impulse]) -> Result<(), WarmStartError> {
+    fn warm_start(
+        &mut self,
+        ctx: &WarmStartContext<'_>,
+        out: &mut [Impulse],
+    ) -> Result<(), WarmStartError> {
         self.inner.warm_start(ctx, out)?;
         assert_eq!(out.len(), ctx.problem.points.len());
         for imp in out.iter() {
@@ -188,26 +266,47 @@ fn provider_output_on_a_pile_step_is_finite_and_admissible() {
     if cannot_run() {
         return;
     }
-    let settings = WorldSettings { guard: GuardPolicy::Error, ..WorldSettings::default() };
-    let mut world = deepcontact_core::scene::pile(3, 100).unwrap().build(settings).unwrap();
+    let settings = WorldSettings {
+        guard: GuardPolicy::Error,
+        ..WorldSettings::default()
+    };
+    let mut world = deepcontact_core::scene::pile(3, 100)
+        .unwrap()
+        .build(settings)
+        .unwrap();
     let mut solver = deepcontact_pgs::PgsSolver::default();
     let mut position = deepcontact_pgs::PgsPositionSolver::default();
     let mut builtin = deepcontact_core::CarriedWarmStart;
     for _ in 0..400 {
-        let r = world.step(&mut builtin, &mut solver, &mut position).unwrap();
+        let r = world
+            .step(&mut builtin, &mut solver, &mut position)
+            .unwrap();
         if r.contacts >= 30 {
             break;
         }
     }
     let inner = CnnWarmStart::new(
         "tiny",
-        ModelSource::Files { model: &data("tiny.onnx"), card: None },
+        ModelSource::Files {
+            model: &data("tiny.onnx"),
+            card: None,
+        },
         ProviderOptions { backend: backend() },
     )
     .unwrap();
-    let mut provider = Checked { inner, calls: 0, points: 0 };
-    let report = world.step(&mut provider, &mut solver, &mut position).unwrap();
-    assert!(report.contacts >= 30, "pile never touched: {} contacts", report.contacts);
+    let mut provider = Checked {
+        inner,
+        calls: 0,
+        points: 0,
+    };
+    let report = world
+        .step(&mut provider, &mut solver, &mut position)
+        .unwrap();
+    assert!(
+        report.contacts >= 30,
+        "pile never touched: {} contacts",
+        report.contacts
+    );
     assert_eq!(report.fallbacks, 0);
     assert_eq!(provider.calls, report.islands);
     assert_eq!(provider.points, report.contacts);
@@ -215,7 +314,10 @@ fn provider_output_on_a_pile_step_is_finite_and_admissible() {
     let input = provider.inner.last_input();
     assert_eq!(input[0], 100.0);
     let body_mass: f32 = input[..61 * 61].iter().filter(|&&m| m < 50.0).sum();
-    assert!((body_mass - 100.0 * std::f32::consts::PI * 0.25).abs() < 1.0, "{body_mass}");
+    assert!(
+        (body_mass - 100.0 * std::f32::consts::PI * 0.25).abs() < 1.0,
+        "{body_mass}"
+    );
 }
 
 #[cfg(feature = "tract")]
@@ -228,14 +330,19 @@ fn tract_agrees_with_onnxruntime_reference() {
     let diff = max_abs_diff(&out, &reference_output());
     assert!(diff < 1e-4, "tract differs from ONNX Runtime by {diff}");
     // Wrong buffer sizes are errors, not panics.
-    assert!(matches!(model.run(&[0.0; 3], &mut out), Err(OnnxError::ShapeMismatch { .. })));
+    assert!(matches!(
+        model.run(&[0.0; 3], &mut out),
+        Err(OnnxError::ShapeMismatch { .. })
+    ));
 }
 
 #[cfg(all(feature = "load-dynamic", not(feature = "tract")))]
 #[test]
 fn onnxruntime_agrees_with_reference() {
     if std::env::var_os("ORT_DYLIB_PATH").is_none() {
-        eprintln!("note: ORT_DYLIB_PATH is not set; skipping the ONNX Runtime backend test (see .ci/onnxruntime.sh)");
+        eprintln!(
+            "note: ORT_DYLIB_PATH is not set; skipping the ONNX Runtime backend test (see .ci/onnxruntime.sh)"
+        );
         return;
     }
     let mut model = load("tiny.onnx", None).unwrap();
@@ -243,5 +350,8 @@ fn onnxruntime_agrees_with_reference() {
     let mut out = vec![0.0; model.output_len()];
     model.run(&reference_input(), &mut out).unwrap();
     let diff = max_abs_diff(&out, &reference_output());
-    assert!(diff < 1e-4, "ONNX Runtime (Rust) differs from the reference by {diff}");
+    assert!(
+        diff < 1e-4,
+        "ONNX Runtime (Rust) differs from the reference by {diff}"
+    );
 }

@@ -50,14 +50,21 @@ def tiny(out_channels=2):
 
 
 layout = {
-    "nx": 61, "ny": 61, "spacing": 0.25, "origin": [0.0, 0.0], "kernel": "poly6", "support": 0.5,
-    "wall_mass": 100.0, "order": "row-major [y][x]",
+    "version": 1,
+    "grid": {"origin": [0.0, 0.0], "spacing": 0.25, "nx": 61, "ny": 61},
+    "order": "chw",
+    "kernel": {"kind": "poly6"},
+    "h": 0.5,
+    "search": "exact",
+    "g2p": "sph",
     "input_channels": ["mass", "vx", "vy", "omega", "nx", "ny"],
-    "output_channels": ["normal", "tangent"],
+    "output_channels": ["normal_impulse", "tangent_impulse"],
+    "wall_mass": 100.0,
+    "wall_band": 0.125,
 }
 
 
-def card(name, out_channels=("normal", "tangent"), in_channels=None, in_shape=(1, 6, 61, 61)):
+def card(name, out_channels=("normal_impulse", "tangent_impulse"), in_channels=None, in_shape=(1, 6, 61, 61)):
     return {
         "format": "deepcontact-model-card", "format_version": 1, "name": name,
         "architecture": "test model: conv 3x3 + relu + avg-pool + resize + 1x1 convs",
