@@ -1,0 +1,597 @@
+//! Assembly of the Delassus matrix `W = J M⁻¹ Jᵀ` and of `q = J v_free − bias`.
+//!
+//! # Layout
+//! Point `i` of the problem owns two rows: `2i` (normal) and `2i + 1` (tangent, along
+//! `t = (−n.y, n.x)`). Each body has three velocity degrees of freedom `(vx, vy, ω)` with
+//! inverse mass `diag(m⁻¹, m⁻¹, I⁻¹)`. The normal row of a point between bodies A and B is
+//! `J = [−nᵀ, −(r_A × n) | nᵀ, r_B × n]`, the tangent row the same with `t`, so that with
+//! `λ` the impulses the relative velocity after the solve is `Wλ + q`:
+//!
+//! * `v = v_free + M⁻¹ Jᵀ λ`,
+//! * `J v − bias = Wλ + q` with `q = J v_free − bias` (the restitution bias sits on
+//!   normal rows only),
+//!
+//! and the frictional contact problem is: `λn ≥ 0 ⟂ (Wλ + q)n ≥ 0`, and per point `λt` in
+//! `[−μλn, μλn]` with `(Wλ + q)t ≥ 0` at the lower bound, `≤ 0` at the upper bound and
+//! `= 0` strictly inside.
+//!
+//! # Dense or sparse
+//! Islands with at most [`DEFAULT_DENSE_THRESHOLD`] rows (64 points) are assembled into a
+//! dense faer [`Mat`] (`W = (J M⁻¹) Jᵀ` through faer's matrix product); larger ones into
+//! a compressed-column matrix read through faer's [`SparseColMatRef`], built by
+//! accumulating `J_i M⁻¹ J_jᵀ` over the bodies that rows `i` and `j` share. A contact
+//! island's `W` has `O(points)` non-zeros (each point couples only with the points of its
+//! two bodies), so beyond a few dozen points the sparse form is both smaller and faster
+//! for a sweep; the threshold is where a dense sweep (`rows²` multiply-adds) stops being
+//! cheap. Both paths give the same matrix (tested) and all buffers are reused between
+//! assemblies.
+
+use deepcontact_core::math::{Real, Vector, cross};
+use deepcontact_core::{ContactProblem, Impulse};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{Accum, Mat, MatMut, MatRef, Par};
+
+use crate::LcpError;
+
+/// Default largest number of rows (2 per point) assembled densely in [`AssemblyMode::Auto`].
+pub const DEFAULT_DENSE_THRESHOLD: usize = 128;
+
+/// Largest number of rows a dense assembly accepts (a forced [`AssemblyMode::Dense`] above it
+/// is an error rather than a multi-gigabyte allocation).
+pub const MAX_DENSE_ROWS: usize = 4096;
+
+/// How to store the assembled Delassus matrix.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum AssemblyMode {
+    /// Dense up to the solver's `dense_threshold` rows, sparse above (default).
+    #[default]
+    Auto,
+    /// Always dense (at most [`MAX_DENSE_ROWS`] rows).
+    Dense,
+    /// Always sparse.
+    Sparse,
+}
+
+impl AssemblyMode {
+    /// Whether a problem of `rows` rows is assembled densely under this mode.
+    pub fn is_dense_for(self, rows: usize, threshold: usize) -> bool {
+        match self {
+            AssemblyMode::Auto => rows <= threshold,
+            AssemblyMode::Dense => true,
+            AssemblyMode::Sparse => false,
+        }
+    }
+}
+
+/// One row of `J`: the two bodies and the three coefficients on each.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct JacRow {
+    pub(crate) a: u32,
+    pub(crate) b: u32,
+    pub(crate) ja: [Real; 3],
+    pub(crate) jb: [Real; 3],
+}
+
+#[inline(always)]
+fn dot3(x: &[Real; 3], m: &[Real; 3], y: &[Real; 3]) -> Real {
+    x[0] * m[0] * y[0] + x[1] * m[1] * y[1] + x[2] * m[2] * y[2]
+}
+
+/// The assembled frictional contact problem of one island: `W`, `q`, the effective masses,
+/// the friction coefficients and what is needed to recover velocities.
+///
+/// Built by [`Delassus::assemble`]; buffers are kept and reused by the next assembly.
+#[derive(Debug)]
+pub struct Delassus {
+    rows: usize,
+    bodies: usize,
+    dense: bool,
+    jac: Vec<JacRow>,
+    inv_mass: Vec<[Real; 3]>,
+    v_free: Vec<[Real; 3]>,
+    q: Vec<Real>,
+    m_eff: Vec<Real>,
+    mu: Vec<Real>,
+    diag: Vec<Real>,
+    // Dense storage.
+    w_dense: Mat<Real>,
+    j_dense: Mat<Real>,
+    jm_dense: Mat<Real>,
+    // Sparse storage: compressed columns, rows sorted within each column.
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    values: Vec<Real>,
+    // Assembly scratch.
+    adj_ptr: Vec<usize>,
+    adj: Vec<u32>,
+    mark: Vec<usize>,
+    slot: Vec<usize>,
+    blocks: Vec<(u32, [Real; 4])>,
+}
+
+impl Default for Delassus {
+    fn default() -> Self {
+        Self {
+            rows: 0,
+            bodies: 0,
+            dense: true,
+            jac: Vec::new(),
+            inv_mass: Vec::new(),
+            v_free: Vec::new(),
+            q: Vec::new(),
+            m_eff: Vec::new(),
+            mu: Vec::new(),
+            diag: Vec::new(),
+            w_dense: Mat::new(),
+            j_dense: Mat::new(),
+            jm_dense: Mat::new(),
+            col_ptr: Vec::new(),
+            row_idx: Vec::new(),
+            values: Vec::new(),
+            adj_ptr: Vec::new(),
+            adj: Vec::new(),
+            mark: Vec::new(),
+            slot: Vec::new(),
+            blocks: Vec::new(),
+        }
+    }
+}
+
+impl Delassus {
+    /// An empty assembly (0 rows).
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Assembles `problem` (which the caller has validated, or trusts) with the given storage
+    /// choice. Fails on non-finite results or a forced dense assembly above
+    /// [`MAX_DENSE_ROWS`]; never panics on a problem whose indices are in range, and reports
+    /// out-of-range body indices as [`LcpError::InvalidProblem`].
+    pub fn assemble(&mut self, problem: &ContactProblem, mode: AssemblyMode, threshold: usize) -> Result<(), LcpError> {
+        let rows = 2 * problem.points.len();
+        let nb = problem.bodies.len();
+        let dense = mode.is_dense_for(rows, threshold);
+        if dense && rows > MAX_DENSE_ROWS {
+            return Err(LcpError::TooLargeForDense { rows, limit: MAX_DENSE_ROWS });
+        }
+        self.rows = rows;
+        self.bodies = nb;
+        self.dense = dense;
+
+        self.inv_mass.clear();
+        self.v_free.clear();
+        for b in &problem.bodies {
+            self.inv_mass.push([b.inv_mass, b.inv_mass, b.inv_inertia]);
+            self.v_free.push([b.linear_velocity.x, b.linear_velocity.y, b.angular_velocity]);
+        }
+        self.jac.clear();
+        self.q.clear();
+        self.m_eff.clear();
+        self.mu.clear();
+        for (i, p) in problem.points.iter().enumerate() {
+            if p.body_a as usize >= nb || p.body_b as usize >= nb {
+                return Err(LcpError::InvalidProblem(deepcontact_core::CoreError::InvalidProblem(format!(
+                    "point {i} has bad body indices"
+                ))));
+            }
+            let n = p.normal;
+            let t = p.tangent();
+            let (a, b) = (p.body_a, p.body_b);
+            for (d, bias, mass) in [(n, p.velocity_bias, p.normal_mass), (t, 0.0, p.tangent_mass)] {
+                let row = JacRow { a, b, ja: [-d.x, -d.y, -cross(&p.r_a, &d)], jb: [d.x, d.y, cross(&p.r_b, &d)] };
+                let (va, vb) = (&self.v_free[a as usize], &self.v_free[b as usize]);
+                let jv = row.ja[0] * va[0]
+                    + row.ja[1] * va[1]
+                    + row.ja[2] * va[2]
+                    + row.jb[0] * vb[0]
+                    + row.jb[1] * vb[1]
+                    + row.jb[2] * vb[2];
+                self.q.push(jv - bias);
+                self.m_eff.push(mass);
+                self.jac.push(row);
+            }
+            self.mu.push(p.friction);
+        }
+        if dense { self.assemble_dense() } else { self.assemble_sparse() }
+        self.diag.clear();
+        for i in 0..rows {
+            let d = self.entry(i, i);
+            self.diag.push(d);
+        }
+        if let Some(row) = self.q.iter().position(|v| !v.is_finite()) {
+            return Err(LcpError::NonFinite { what: "free velocity q", row, iteration: 0 });
+        }
+        if let Some(row) = self.m_eff.iter().position(|v| !v.is_finite()) {
+            return Err(LcpError::NonFinite { what: "effective mass", row, iteration: 0 });
+        }
+        let bad = if self.dense {
+            (0..rows).find(|&j| self.w_dense.col_as_slice(j).iter().any(|v| !v.is_finite()))
+        } else {
+            (0..rows).find(|&j| self.values[self.col_ptr[j]..self.col_ptr[j + 1]].iter().any(|v| !v.is_finite()))
+        };
+        if let Some(row) = bad {
+            return Err(LcpError::NonFinite { what: "Delassus entry", row, iteration: 0 });
+        }
+        Ok(())
+    }
+
+    /// Dense path: `W = (J M⁻¹) Jᵀ` with faer's matrix product.
+    fn assemble_dense(&mut self) {
+        let (n, dof) = (self.rows, 3 * self.bodies);
+        self.j_dense.resize_with(n, dof, |_, _| 0.0);
+        self.jm_dense.resize_with(n, dof, |_, _| 0.0);
+        self.w_dense.resize_with(n, n, |_, _| 0.0);
+        self.j_dense.fill(0.0);
+        self.jm_dense.fill(0.0);
+        for (i, r) in self.jac.iter().enumerate() {
+            for k in 0..3 {
+                let (ca, cb) = (3 * r.a as usize + k, 3 * r.b as usize + k);
+                self.j_dense[(i, ca)] += r.ja[k];
+                self.j_dense[(i, cb)] += r.jb[k];
+            }
+        }
+        for (body, m) in self.inv_mass.iter().enumerate() {
+            for (k, &mk) in m.iter().enumerate() {
+                let c = 3 * body + k;
+                for i in 0..n {
+                    self.jm_dense[(i, c)] = self.j_dense[(i, c)] * mk;
+                }
+            }
+        }
+        faer::linalg::matmul::matmul(
+            self.w_dense.as_mut(),
+            Accum::Replace,
+            self.jm_dense.as_ref(),
+            self.j_dense.as_ref().transpose(),
+            1.0,
+            Par::Seq,
+        );
+    }
+
+    /// Sparse path: per point, accumulate the 2×2 blocks `J_i M_k⁻¹ J_jᵀ` over the dynamic
+    /// bodies `k` it shares with every other point `j`.
+    fn assemble_sparse(&mut self) {
+        let np = self.rows / 2;
+        let nb = self.bodies;
+        let movable = |m: &[Real; 3]| m.iter().any(|&v| v != 0.0);
+        // Body -> (point, side) adjacency, dynamic bodies only.
+        self.adj_ptr.clear();
+        self.adj_ptr.resize(nb + 1, 0);
+        for p in 0..np {
+            let r = &self.jac[2 * p];
+            for body in [r.a, r.b] {
+                if movable(&self.inv_mass[body as usize]) {
+                    self.adj_ptr[body as usize + 1] += 1;
+                }
+            }
+        }
+        for k in 0..nb {
+            self.adj_ptr[k + 1] += self.adj_ptr[k];
+        }
+        self.adj.clear();
+        self.adj.resize(self.adj_ptr[nb], 0);
+        self.slot.clear();
+        self.slot.extend_from_slice(&self.adj_ptr[..nb]);
+        for p in 0..np {
+            let r = &self.jac[2 * p];
+            for (side, body) in [(0u32, r.a), (1u32, r.b)] {
+                if movable(&self.inv_mass[body as usize]) {
+                    let s = &mut self.slot[body as usize];
+                    self.adj[*s] = 2 * p as u32 + side;
+                    *s += 1;
+                }
+            }
+        }
+        self.mark.clear();
+        self.mark.resize(np, 0);
+        self.slot.clear();
+        self.slot.resize(np, 0);
+        self.col_ptr.clear();
+        self.row_idx.clear();
+        self.values.clear();
+        self.col_ptr.push(0);
+        let side_of = |r: &JacRow, side: u32| if side == 0 { (r.a, r.ja) } else { (r.b, r.jb) };
+        for i in 0..np {
+            self.blocks.clear();
+            let stamp = i + 1;
+            // The point itself is always present (even between two immovable bodies).
+            self.mark[i] = stamp;
+            self.slot[i] = 0;
+            self.blocks.push((i as u32, [0.0; 4]));
+            for side_i in 0..2u32 {
+                let (body, jn_i) = side_of(&self.jac[2 * i], side_i);
+                let (_, jt_i) = side_of(&self.jac[2 * i + 1], side_i);
+                let m = self.inv_mass[body as usize];
+                if !movable(&m) {
+                    continue;
+                }
+                for &code in &self.adj[self.adj_ptr[body as usize]..self.adj_ptr[body as usize + 1]] {
+                    let (j, side_j) = ((code / 2) as usize, code % 2);
+                    let (body_j, jn_j) = side_of(&self.jac[2 * j], side_j);
+                    debug_assert_eq!(body_j, body);
+                    let (_, jt_j) = side_of(&self.jac[2 * j + 1], side_j);
+                    if self.mark[j] != stamp {
+                        self.mark[j] = stamp;
+                        self.slot[j] = self.blocks.len();
+                        self.blocks.push((j as u32, [0.0; 4]));
+                    }
+                    let blk = &mut self.blocks[self.slot[j]].1;
+                    // Column 2i (normal of i): rows 2j, 2j+1; column 2i+1 (tangent of i).
+                    blk[0] += dot3(&jn_j, &m, &jn_i);
+                    blk[1] += dot3(&jt_j, &m, &jn_i);
+                    blk[2] += dot3(&jn_j, &m, &jt_i);
+                    blk[3] += dot3(&jt_j, &m, &jt_i);
+                }
+            }
+            self.blocks.sort_unstable_by_key(|b| b.0);
+            for c in 0..2 {
+                for (j, blk) in &self.blocks {
+                    let j = *j as usize;
+                    self.row_idx.push(2 * j);
+                    self.values.push(blk[2 * c]);
+                    self.row_idx.push(2 * j + 1);
+                    self.values.push(blk[2 * c + 1]);
+                }
+                self.col_ptr.push(self.row_idx.len());
+            }
+        }
+    }
+
+    /// Rows of the system (2 per point).
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// Points of the system.
+    pub fn points(&self) -> usize {
+        self.rows / 2
+    }
+
+    /// Whether the last assembly is dense.
+    pub fn is_dense(&self) -> bool {
+        self.dense
+    }
+
+    /// Stored entries of `W` (`rows²` when dense).
+    pub fn nnz(&self) -> usize {
+        if self.dense { self.rows * self.rows } else { self.values.len() }
+    }
+
+    /// `q = J v_free − bias`, one per row.
+    pub fn q(&self) -> &[Real] {
+        &self.q
+    }
+
+    /// The problem's effective masses, one per row (`normal_mass`, `tangent_mass`; these
+    /// equal `1 / W_ii`). They scale the projected steps and the natural-map residual,
+    /// exactly as in deepcontact-pgs.
+    pub fn effective_mass(&self) -> &[Real] {
+        &self.m_eff
+    }
+
+    /// The diagonal of `W`, one per row.
+    pub fn diagonal(&self) -> &[Real] {
+        &self.diag
+    }
+
+    /// Friction coefficient of each point.
+    pub fn friction(&self) -> &[Real] {
+        &self.mu
+    }
+
+    /// The dense `W` when the last assembly was dense.
+    pub fn dense(&self) -> Option<MatRef<'_, Real>> {
+        self.dense.then(|| self.w_dense.as_ref())
+    }
+
+    /// The sparse `W` (compressed columns, symmetric) when the last assembly was sparse.
+    pub fn sparse(&self) -> Option<SparseColMatRef<'_, usize, Real>> {
+        (!self.dense).then(|| SparseColMatRef::new(self.sparse_symbolic(), &self.values))
+    }
+
+    /// Symbolic structure of the sparse `W` (call only when sparse).
+    pub(crate) fn sparse_symbolic(&self) -> SymbolicSparseColMatRef<'_, usize> {
+        SymbolicSparseColMatRef::new_checked(self.rows, self.rows, &self.col_ptr, None, &self.row_idx)
+    }
+
+    /// Stored entries of column `j` of the sparse `W`: `(row indices, values)`.
+    #[inline]
+    pub(crate) fn sparse_col(&self, j: usize) -> (&[usize], &[Real]) {
+        let (s, e) = (self.col_ptr[j], self.col_ptr[j + 1]);
+        (&self.row_idx[s..e], &self.values[s..e])
+    }
+
+    /// `W_ij` (0 outside the sparsity pattern or the matrix).
+    pub fn entry(&self, i: usize, j: usize) -> Real {
+        if i >= self.rows || j >= self.rows {
+            return 0.0;
+        }
+        if self.dense {
+            self.w_dense[(i, j)]
+        } else {
+            let (rows, vals) = self.sparse_col(j);
+            rows.binary_search(&i).map(|k| vals[k]).unwrap_or(0.0)
+        }
+    }
+
+    /// `W` as a dense faer matrix (for tests and small problems).
+    pub fn to_dense(&self) -> Mat<Real> {
+        if self.dense {
+            return self.w_dense.clone();
+        }
+        let mut m = Mat::zeros(self.rows, self.rows);
+        for j in 0..self.rows {
+            let (rows, vals) = self.sparse_col(j);
+            for (&i, &v) in rows.iter().zip(vals) {
+                m[(i, j)] = v;
+            }
+        }
+        m
+    }
+
+    /// `(Wx)_i`, using the symmetry of `W` (column `i` is row `i`).
+    #[inline]
+    pub fn row_dot(&self, i: usize, x: &[Real]) -> Real {
+        if self.dense {
+            let col = self.w_dense.col_as_slice(i);
+            col.iter().zip(x).map(|(a, b)| a * b).sum()
+        } else {
+            let (rows, vals) = self.sparse_col(i);
+            rows.iter().zip(vals).map(|(&r, v)| v * x[r]).sum()
+        }
+    }
+
+    /// `out = W x + q` (the relative velocity of every row after applying `x`).
+    /// Slices shorter than [`Self::rows`] are a programming error and are not read.
+    pub fn velocity_of(&self, x: &[Real], out: &mut [Real]) {
+        let n = self.rows;
+        if x.len() < n || out.len() < n {
+            return;
+        }
+        out[..n].copy_from_slice(&self.q);
+        self.mul_add(x, out);
+    }
+
+    /// `out += W x`.
+    pub(crate) fn mul_add(&self, x: &[Real], out: &mut [Real]) {
+        let n = self.rows;
+        if n == 0 {
+            return;
+        }
+        if self.dense {
+            faer::linalg::matmul::matmul(
+                MatMut::from_column_major_slice_mut(&mut out[..n], n, 1),
+                Accum::Add,
+                self.w_dense.as_ref(),
+                MatRef::from_column_major_slice(&x[..n], n, 1),
+                1.0,
+                Par::Seq,
+            );
+        } else {
+            for (j, &xj) in x[..n].iter().enumerate() {
+                if xj != 0.0 {
+                    let (rows, vals) = self.sparse_col(j);
+                    for (&r, v) in rows.iter().zip(vals) {
+                        out[r] += v * xj;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Projects row `i`'s candidate value onto its bounds given the current normal impulse
+    /// `normal` of its point: `[0, ∞)` for a normal row, `[−μ λn, μ λn]` for a tangent row
+    /// (the bound is taken as 0 when `μ λn` is negative).
+    #[inline(always)]
+    pub fn project_row(&self, i: usize, value: Real, normal: Real) -> Real {
+        if i % 2 == 0 {
+            value.max(0.0)
+        } else {
+            let bound = (self.mu[i / 2] * normal).max(0.0);
+            value.max(-bound).min(bound)
+        }
+    }
+
+    /// Projects every point of `x` onto its friction cone (normal first, then tangent), as
+    /// one PGS sweep would clamp it.
+    pub fn project(&self, x: &mut [Real]) {
+        for (p, pair) in x.chunks_exact_mut(2).enumerate().take(self.rows / 2) {
+            pair[0] = pair[0].max(0.0);
+            let bound = self.mu[p] * pair[0];
+            pair[1] = pair[1].max(-bound).min(bound);
+        }
+    }
+
+    /// Natural-map residual `max_i |λ_i − proj(λ_i − m_i w_i)|` with `w = Wλ + q` given,
+    /// in impulse units: the same definition as deepcontact-pgs's report (the change one
+    /// Jacobi sweep would make).
+    pub fn natural_residual(&self, lambda: &[Real], w: &[Real]) -> Real {
+        let mut res: Real = 0.0;
+        for i in 0..self.rows {
+            let normal = lambda[i & !1];
+            let r = lambda[i] - self.project_row(i, lambda[i] - self.m_eff[i] * w[i], normal);
+            res = res.max(r.abs());
+        }
+        res
+    }
+
+    /// Body velocities `v = v_free + M⁻¹ Jᵀ λ`, one `(linear, angular)` per body.
+    pub fn body_velocities(&self, lambda: &[Real], out: &mut [(Vector, Real)]) {
+        for (o, v) in out.iter_mut().zip(&self.v_free) {
+            *o = (Vector::new(v[0], v[1]), v[2]);
+        }
+        for (r, &l) in self.jac.iter().zip(lambda) {
+            if l == 0.0 {
+                continue;
+            }
+            for (body, j) in [(r.a, &r.ja), (r.b, &r.jb)] {
+                let m = &self.inv_mass[body as usize];
+                if let Some(o) = out.get_mut(body as usize) {
+                    o.0.x += m[0] * j[0] * l;
+                    o.0.y += m[1] * j[1] * l;
+                    o.1 += m[2] * j[2] * l;
+                }
+            }
+        }
+    }
+}
+
+/// Copies impulses into the row layout (`[n0, t0, n1, t1, ...]`).
+pub(crate) fn impulses_to_rows(impulses: &[Impulse], out: &mut Vec<Real>) {
+    out.clear();
+    for imp in impulses {
+        out.push(imp.normal);
+        out.push(imp.tangent);
+    }
+}
+
+/// Copies the row layout back into impulses.
+pub(crate) fn rows_to_impulses(x: &[Real], impulses: &mut [Impulse]) {
+    for (imp, pair) in impulses.iter_mut().zip(x.chunks_exact(2)) {
+        *imp = Impulse::new(pair[0], pair[1]);
+    }
+}
+
+/// Row order of one Gauss-Seidel sweep, the same as deepcontact-pgs without its block
+/// solver: per manifold, the tangent rows of its points, then their normal rows. Points not
+/// covered by a well-formed manifold list (unvalidated input) are swept point by point.
+pub(crate) fn sweep_order(problem: &ContactProblem, order: &mut Vec<u32>) {
+    order.clear();
+    let np = problem.points.len();
+    let mut covered = 0usize;
+    let well_formed = problem.manifolds.iter().all(|&(s, e)| {
+        let ok = s as usize == covered && e >= s && e as usize <= np;
+        covered = e as usize;
+        ok
+    }) && covered == np;
+    if well_formed {
+        for &(s, e) in &problem.manifolds {
+            order.extend((s..e).map(|p| 2 * p + 1));
+            order.extend((s..e).map(|p| 2 * p));
+        }
+    } else {
+        for p in 0..np as u32 {
+            order.push(2 * p + 1);
+            order.push(2 * p);
+        }
+    }
+}
+
+/// One projected Gauss-Seidel / SOR sweep on the assembled system in `order`, updating `x`
+/// in place: `x_i ← proj(x_i − ω m_i (Wx + q)_i)`. Returns `(max |Δ|, Σ Δ², all finite)`.
+pub(crate) fn sor_sweep(del: &Delassus, order: &[u32], x: &mut [Real], omega: Real) -> (Real, Real, bool) {
+    let mut max_d: Real = 0.0;
+    let mut sum_sq: Real = 0.0;
+    let mut finite = true;
+    for &i in order {
+        let i = i as usize;
+        let w = del.row_dot(i, x) + del.q[i];
+        finite &= w.is_finite();
+        let new = del.project_row(i, x[i] - omega * del.m_eff[i] * w, x[i & !1]);
+        let d = new - x[i];
+        x[i] = new;
+        max_d = max_d.max(d.abs());
+        sum_sq += d * d;
+    }
+    (max_d, sum_sq, finite)
+}
