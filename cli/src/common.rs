@@ -83,5 +83,80 @@ impl SolverArgs {
 pub fn registry() -> Registry {
     let mut registry = Registry::with_defaults();
     deepcontact_onnx::register(&mut registry);
+    {
+        // deepcontact-lcp: PSOR and Newton on the assembled Delassus matrix (faer).
+        use deepcontact_lcp::{
+            AssemblyMode, NewtonSettings, NewtonSolver, PsorSettings, PsorSolver,
+        };
+        use deepcontact_warmstart::{Params, WarmstartError};
+        fn invalid(p: &Params<'_>, param: &str, value: String, reason: &str) -> WarmstartError {
+            let (spec, param, reason) =
+                (p.name().to_string(), param.to_string(), reason.to_string());
+            WarmstartError::InvalidParameter {
+                spec,
+                param,
+                value,
+                reason,
+            }
+        }
+        fn assembly(p: &mut Params<'_>) -> Result<(AssemblyMode, usize), WarmstartError> {
+            let mode = match p.string("assembly") {
+                None | Some("auto") => AssemblyMode::Auto,
+                Some("dense") => AssemblyMode::Dense,
+                Some("sparse") => AssemblyMode::Sparse,
+                Some(v) => {
+                    return Err(invalid(
+                        p,
+                        "assembly",
+                        v.into(),
+                        "must be auto, dense or sparse",
+                    ));
+                }
+            };
+            let threshold = p.u64(
+                "dense_threshold",
+                deepcontact_lcp::DEFAULT_DENSE_THRESHOLD as u64,
+            )?;
+            Ok((mode, usize::try_from(threshold).unwrap_or(usize::MAX)))
+        }
+        registry.register_solver(
+            "psor",
+            "projected SOR on the assembled Delassus matrix; omega=1 (in (0,2); 1 = PGS without \
+             block solver), assembly=auto|dense|sparse, dense_threshold=128 (rows)",
+            |p| {
+                let omega = p.f64("omega", 1.0)?;
+                let (assembly, dense_threshold) = assembly(p)?;
+                let settings = PsorSettings {
+                    omega,
+                    assembly,
+                    dense_threshold,
+                    ..PsorSettings::default()
+                };
+                settings
+                    .validate()
+                    .map_err(|e| invalid(p, "omega", omega.to_string(), &e.to_string()))?;
+                Ok(Box::new(PsorSolver::with_settings(settings)))
+            },
+        );
+        registry.register_solver(
+            "newton",
+            "semismooth Newton on the natural map (faer LU, Armijo line search); reg=1e-10 \
+             (relative regularisation), assembly=auto|dense|sparse, dense_threshold=128 (rows)",
+            |p| {
+                let regularization = p.f64("reg", NewtonSettings::default().regularization)?;
+                let (assembly, dense_threshold) = assembly(p)?;
+                let settings = NewtonSettings {
+                    regularization,
+                    assembly,
+                    dense_threshold,
+                    ..NewtonSettings::default()
+                };
+                settings
+                    .validate()
+                    .map_err(|e| invalid(p, "reg", regularization.to_string(), &e.to_string()))?;
+                Ok(Box::new(NewtonSolver::with_settings(settings)))
+            },
+        );
+    }
     registry
 }
