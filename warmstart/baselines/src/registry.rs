@@ -60,7 +60,7 @@ impl Registry {
         let mut r = Self::empty();
         r.register_solver(
             "pgs",
-            "sequential-impulse projected Gauss-Seidel (Box2D v2.4); block=true|false",
+            "sequential-impulse projected Gauss-Seidel (Box2D v2.4); block=true|false, order=coloured|sequential",
             |p| {
                 let block = match p.string("block") {
                     None | Some("true") => true,
@@ -74,9 +74,22 @@ impl Registry {
                         });
                     }
                 };
+                let ordering = match p.string("order") {
+                    None | Some("coloured") | Some("colored") => deepcontact_pgs::Ordering::Coloured,
+                    Some("sequential") => deepcontact_pgs::Ordering::Sequential,
+                    Some(v) => {
+                        return Err(WarmstartError::InvalidParameter {
+                            spec: "pgs".into(),
+                            param: "order".into(),
+                            value: v.into(),
+                            reason: "must be coloured or sequential".into(),
+                        });
+                    }
+                };
                 Ok(Box::new(deepcontact_pgs::PgsSolver::with_settings(
                     deepcontact_pgs::PgsSettings {
                         block_solver: block,
+                        ordering,
                         ..Default::default()
                     },
                 )))
