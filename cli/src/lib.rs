@@ -3,6 +3,8 @@
 #![warn(missing_docs)]
 
 pub mod common;
+pub mod compare;
 pub mod generate;
+pub mod plots;
 pub mod render;
 pub mod simulate;

@@ -1,7 +1,7 @@
 //! `deepcontact`: simulate the thesis scenes, compare warm starts, and more.
 
 use clap::{Parser, Subcommand};
-use deepcontact_cli::{generate, simulate};
+use deepcontact_cli::{compare, generate, simulate};
 
 /// 2D rigid-body contacts solved iteratively, with pluggable warm starts.
 #[derive(Debug, Parser)]
@@ -17,6 +17,8 @@ enum Command {
     Simulate(simulate::SimulateArgs),
     /// Training data for the CNN warm starts: input and label grids per step, one safetensors file per seed.
     Generate(generate::GenerateArgs),
+    /// Compare warm starts (× solvers) on the thesis pile over several seeds: tables and figures.
+    Compare(compare::CompareArgs),
 }
 
 fn main() {
@@ -24,6 +26,7 @@ fn main() {
     let result = match cli.command {
         Command::Simulate(args) => simulate::run(args),
         Command::Generate(args) => generate::run(args),
+        Command::Compare(args) => compare::run(args),
     };
     if let Err(e) = result {
         eprintln!("error: {e}");

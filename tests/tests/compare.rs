@@ -1,0 +1,268 @@
+//! `deepcontact compare` as a library: outputs, columns, and independence from the thread count.
+
+use std::path::PathBuf;
+
+use deepcontact_cli::common::CliError;
+use deepcontact_cli::compare::{
+    self, CURVES_COLUMNS, Config, Results, STEPS_COLUMNS, SUMMARY_COLUMNS, StepRecord, parse_seeds,
+};
+use deepcontact_warmstart::{Registry, WarmstartError, split_spec_list};
+
+/// Two seeds and enough steps to get past the free fall (the first contacts come near step 33).
+fn small(threads: usize) -> Config {
+    Config {
+        seeds: vec![12345, 12346],
+        steps: 45,
+        threads,
+        progress: false,
+        ..Config::default()
+    }
+}
+
+/// The step records without their wall times.
+fn deterministic(r: &StepRecord) -> StepRecord {
+    StepRecord {
+        warm_start_seconds: 0.0,
+        solve_seconds: 0.0,
+        step_seconds: 0.0,
+        ..r.clone()
+    }
+}
+
+fn assert_same_numbers(a: &Results, b: &Results) {
+    assert_eq!(a.runs.len(), b.runs.len());
+    for (ra, rb) in a.runs.iter().zip(&b.runs) {
+        assert_eq!(
+            (ra.solver, ra.warm_start, ra.seed),
+            (rb.solver, rb.warm_start, rb.seed)
+        );
+        let (sa, sb): (Vec<_>, Vec<_>) = (
+            ra.steps.iter().map(deterministic).collect(),
+            rb.steps.iter().map(deterministic).collect(),
+        );
+        assert_eq!(sa, sb, "{} seed {}", a.warm_starts[ra.warm_start], ra.seed);
+        assert_eq!(ra.curves, rb.curves);
+    }
+    assert_eq!(compare::curves(a), compare::curves(b));
+    assert_eq!(
+        compare::curves_csv(&compare::curves(a)),
+        compare::curves_csv(&compare::curves(b))
+    );
+}
+
+fn scratch_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("deepcontact-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+#[test]
+fn compare_writes_every_file_and_ignores_the_thread_count() {
+    let one = compare::run_experiment(&small(1)).unwrap();
+    let two = compare::run_experiment(&small(2)).unwrap();
+    assert_eq!((one.threads, two.threads), (1, 2));
+    assert_eq!(
+        one.warm_starts,
+        ["none", "builtin", "random", "bad", "copy", "copy2", "copy0"]
+    );
+    assert_same_numbers(&one, &two);
+
+    let rows = compare::summarize(&one);
+    assert_eq!(rows.len(), 7);
+    let row = |name: &str| rows.iter().find(|r| r.warm_start == name).unwrap();
+    assert!(
+        row("none").contact_steps > 5,
+        "the pile touches within 45 steps"
+    );
+    assert!(
+        row("copy").mean_iterations <= 3.0,
+        "copy: {}",
+        row("copy").mean_iterations
+    );
+    assert!(row("copy").mean_iterations < row("none").mean_iterations);
+    assert!(row("bad").mse_normal > row("none").mse_normal);
+    assert_eq!(
+        row("none").speedup_vs_none.map(|s| (s * 1e9).round()),
+        Some(1e9)
+    );
+    assert!(rows.iter().all(|r| r.fallbacks == 0 && r.steps == 90));
+
+    let dir = scratch_dir("compare");
+    let outputs = compare::write_outputs(&one, &dir, true).unwrap();
+    assert_eq!(outputs.files.len(), 5 + 2 * 5);
+    for f in &outputs.files {
+        assert!(
+            f.is_file() && std::fs::metadata(f).unwrap().len() > 0,
+            "{}",
+            f.display()
+        );
+    }
+    let read = |name: &str| std::fs::read_to_string(dir.join(name)).unwrap();
+    let steps = read("steps.csv");
+    let mut lines = steps.lines();
+    assert_eq!(lines.next(), Some(STEPS_COLUMNS));
+    assert_eq!(lines.count(), 7 * 2 * 45);
+    for col in [
+        "contacts",
+        "iterations",
+        "residual_inf",
+        "mse_normal",
+        "mse_tangent",
+        "fallbacks",
+        "warm_start_ms",
+        "solve_ms",
+        "step_ms",
+    ] {
+        assert!(
+            STEPS_COLUMNS.split(',').any(|c| c == col),
+            "steps.csv has {col}"
+        );
+    }
+    let curves = read("curves.csv");
+    assert_eq!(curves.lines().next(), Some(CURVES_COLUMNS));
+    assert!(
+        curves.lines().count() > 7,
+        "one row per iteration at least for each warm start"
+    );
+    let summary = read("summary.csv");
+    assert_eq!(summary.lines().next(), Some(SUMMARY_COLUMNS));
+    assert_eq!(summary.lines().count(), 1 + 7);
+    let md = read("summary.md");
+    assert_eq!(md, outputs.summary_md);
+    for col in [
+        "warm_start",
+        "mean_iterations",
+        "median_iterations",
+        "capped_steps",
+        "mean_contacts",
+        "warm_start_ms",
+        "solve_ms",
+        "step_ms",
+        "mse_normal",
+        "mse_tangent",
+        "fallbacks",
+        "speedup_vs_none",
+        "speedup_vs_builtin",
+    ] {
+        assert!(
+            SUMMARY_COLUMNS.split(',').any(|c| c == col),
+            "summary.csv has {col}"
+        );
+        assert!(md.contains(col), "summary.md has {col}");
+    }
+    let json = read("summary.json");
+    assert_eq!(json.matches("\"warm_start\":").count(), 7, "{json}");
+    assert!(json.contains("\"seeds\": [") && json.contains("\"copy0\""));
+    let png = std::fs::read(dir.join("figures/residual.png")).unwrap();
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    assert!(read("figures/mse.svg").starts_with("<svg"));
+    // Nothing half-written is left behind.
+    for d in [dir.clone(), dir.join("figures")] {
+        for entry in std::fs::read_dir(d).unwrap() {
+            let name = entry.unwrap().file_name().to_string_lossy().into_owned();
+            assert!(
+                !name.starts_with('.') && !name.contains(".tmp"),
+                "leftover {name}"
+            );
+        }
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn several_solvers_get_a_solver_column_and_their_own_figures() {
+    let config = Config {
+        warm_starts: split_spec_list("none,builtin").unwrap(),
+        solvers: split_spec_list("pgs,pgs:block=false").unwrap(),
+        seeds: vec![12345],
+        steps: 36,
+        threads: 2,
+        progress: false,
+        ..Config::default()
+    };
+    let results = compare::run_experiment(&config).unwrap();
+    let rows = compare::summarize(&results);
+    assert_eq!(rows.len(), 4);
+    assert_eq!(rows[2].solver, "pgs:block=false");
+    let dir = scratch_dir("compare-solvers");
+    let outputs = compare::write_outputs(&results, &dir, true).unwrap();
+    assert!(outputs.summary_md.contains("| solver | warm_start |"));
+    assert!(dir.join("figures/iterations_pgs_block_false.png").is_file());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_third_party_provider_is_compared_through_its_registry() {
+    let mut registry = Registry::with_defaults();
+    registry.register_provider("half_bad", "bad halved", |_, r| {
+        r.build_provider("bad:value=25")
+    });
+    let config = Config {
+        warm_starts: split_spec_list("none,half_bad").unwrap(),
+        seeds: vec![7],
+        steps: 3,
+        progress: false,
+        ..Config::default()
+    };
+    let results = compare::run_experiment_with(&config, &registry).unwrap();
+    assert_eq!(results.warm_starts, ["none", "half_bad"]);
+}
+
+#[test]
+fn bad_input_is_a_typed_error() {
+    let err = |config: Config| {
+        compare::run_experiment(&Config {
+            progress: false,
+            ..config
+        })
+        .unwrap_err()
+    };
+    let base = || Config {
+        seeds: vec![1],
+        steps: 1,
+        ..Config::default()
+    };
+    assert!(matches!(
+        err(Config {
+            warm_starts: split_spec_list("nope").unwrap(),
+            ..base()
+        }),
+        CliError::Spec(WarmstartError::UnknownProvider { .. })
+    ));
+    assert!(matches!(
+        err(Config {
+            solvers: split_spec_list("nope").unwrap(),
+            ..base()
+        }),
+        CliError::Spec(WarmstartError::UnknownSolver { .. })
+    ));
+    assert!(matches!(
+        err(Config {
+            warm_starts: split_spec_list("none,none").unwrap(),
+            ..base()
+        }),
+        CliError::Usage(_)
+    ));
+    assert!(matches!(
+        err(Config { steps: 0, ..base() }),
+        CliError::Usage(_)
+    ));
+    assert!(matches!(
+        err(Config {
+            seeds: vec![],
+            ..base()
+        }),
+        CliError::Usage(_)
+    ));
+    let mut bad_world = base();
+    bad_world.world.solver.max_iterations = 0;
+    assert!(matches!(err(bad_world), CliError::Core(_)));
+
+    assert_eq!(parse_seeds("12345..12355").unwrap().len(), 10);
+    assert_eq!(parse_seeds("3..=5").unwrap(), [3, 4, 5]);
+    assert_eq!(parse_seeds("4, 2,9").unwrap(), [4, 2, 9]);
+    assert_eq!(parse_seeds("8").unwrap(), [8]);
+    for bad in ["", "5..5", "a..b", "1..x", "-1", "1,,x"] {
+        assert!(matches!(parse_seeds(bad), Err(CliError::Usage(_))), "{bad}");
+    }
+}
