@@ -1,0 +1,86 @@
+//! Golden hash of the thesis pile: a bit-exact fingerprint of a whole run.
+//!
+//! Thread-count independence of `deepcontact compare` (1 vs 2 threads, bit for bit) is
+//! already covered by `compare_writes_every_file_and_ignores_the_thread_count` in
+//! `tests/tests/compare.rs`, so it is not repeated here.
+
+use deepcontact_core::scene;
+use deepcontact_tests::{build, run};
+use deepcontact_warmstart::Registry;
+
+/// FNV-1a 64 over the little-endian bytes of `words` (stable by definition, unlike
+/// `std::collections::hash_map::DefaultHasher`, whose algorithm may change between releases).
+fn fnv1a64(words: impl IntoIterator<Item = u64>) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for w in words {
+        for byte in w.to_le_bytes() {
+            h ^= u64::from(byte);
+            h = h.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+    h
+}
+
+/// Hash of the pile (seed 12345, 100 circles) after 250 steps with the `builtin` warm start
+/// and the default PGS solver (coloured order, block solver), over every body's
+/// position x, y, angle, linear velocity x, y and angular velocity (`f64::to_bits`), in body order.
+///
+/// **When it may legitimately change:** any change to the step pipeline (integration,
+/// broad/narrow phase, contact ids and impulse carry-over, islands, position pass), to the
+/// PGS solver (row or manifold order, colouring, block solver, clamping), to the default
+/// world settings, to the scene generator or its RNG, to the parry2d (or nalgebra) version,
+/// or to the floating-point evaluation order anywhere on that path (including compiler
+/// flags such as FMA contraction or target features). A change that is not meant to touch
+/// the physics must keep it.
+///
+/// **How to update it:** run `cargo test -p deepcontact-tests --test golden -- --nocapture`;
+/// the test prints the new value (`golden hash: 0x…`). Check that the physics change was
+/// intended (e.g. `tests/tests/physics.rs` still passes), then paste the value here and say
+/// why in the commit message.
+const PILE_12345_250_BUILTIN_PGS: u64 = 0;
+
+fn pile_hash() -> (u64, usize) {
+    let mut world = build(&scene::pile(12345, 100).unwrap());
+    let mut warm = Registry::with_defaults().build_provider("builtin").unwrap();
+    let reports = run(&mut world, warm.as_mut(), 250, |_, _| {}).unwrap();
+    assert_eq!(reports.len(), 250);
+    assert!(reports.iter().all(|r| r.fallbacks == 0));
+    let words = world.bodies().iter().flat_map(|b| {
+        [
+            b.position.x,
+            b.position.y,
+            b.angle,
+            b.linear_velocity.x,
+            b.linear_velocity.y,
+            b.angular_velocity,
+        ]
+        .map(f64::to_bits)
+    });
+    (fnv1a64(words), world.bodies().len())
+}
+
+#[test]
+fn fnv1a64_matches_the_reference_vectors() {
+    // FNV-1a 64 reference values: empty input, and the bytes of 0u64 (eight zero bytes).
+    assert_eq!(fnv1a64([]), 0xcbf2_9ce4_8422_2325);
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for _ in 0..8 {
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    assert_eq!(fnv1a64([0]), h);
+    // "a" = 0x61 alone is the published 0xaf63dc4c8601ec8c; a word carries 8 bytes, so check
+    // the byte order instead: different words must hash differently.
+    assert_ne!(fnv1a64([1, 2]), fnv1a64([2, 1]));
+}
+
+#[test]
+fn pile_golden_hash() {
+    let (hash, bodies) = pile_hash();
+    println!("golden hash: {hash:#018x} ({bodies} bodies)");
+    assert_eq!(bodies, 104, "100 circles and 4 walls");
+    assert_eq!(
+        hash, PILE_12345_250_BUILTIN_PGS,
+        "the pile's golden hash changed: {hash:#018x} (see the doc comment of \
+         PILE_12345_250_BUILTIN_PGS for when this is legitimate and how to update it)"
+    );
+}
