@@ -4,7 +4,7 @@ Both models take the input grids [N, 6, 61, 61] and return impulse grids [N, 2, 
 Per-channel input and output scales are buffers inside the model, so the exported ONNX works on
 raw grids and returns raw impulses. Only ops that tract 0.23 and ONNX Runtime both run are used:
 Conv (BatchNorm folds into it at export), Relu, AveragePool (ceil_mode), Resize (bilinear,
-align_corners), Add, Mul, Gemm, Reshape/Flatten.
+align_corners), Add, Mul, Min, Gemm, Reshape/Flatten.
 """
 
 from __future__ import annotations
@@ -31,12 +31,22 @@ def conv_bn(cin: int, cout: int, k: int = 3, relu: bool = True) -> nn.Sequential
 
 
 class Scaled(nn.Module):
-    """Holds the fixed input / output scales (set from the training data before training)."""
+    """Holds the fixed input caps and scales and the output scales (set from the training data).
 
-    def __init__(self, cin: int = 6, cout: int = 2):
+    The input is `min(x, in_cap) * in_scale`: the cap keeps the wall mass (100, some 500 times
+    a body node's mass) from swamping the normalisation; only the mass channel is capped.
+    """
+
+    def __init__(self, cin: int = 6, cout: int = 2, mass_cap: float = 2.0):
         super().__init__()
+        cap = torch.full((1, cin, 1, 1), 1e30)
+        cap[0, 0] = mass_cap
+        self.register_buffer("in_cap", cap)
         self.register_buffer("in_scale", torch.ones(1, cin, 1, 1))
         self.register_buffer("out_scale", torch.ones(1, cout, 1, 1))
+
+    def prepare(self, x: torch.Tensor) -> torch.Tensor:
+        return torch.minimum(x, self.in_cap) * self.in_scale
 
 
 class Pressure(Scaled):
@@ -46,10 +56,10 @@ class Pressure(Scaled):
     at each scale two conv 3x3 x c + BN (+ReLU); bilinear resize to 61 and sum; then 1x1 convs
     to 8 and 4 (+BN, ReLU) and a linear 1x1 conv to the 2 output channels.
     Deviation from the thesis: 3x3 kernels instead of 4x4 (symmetric 'same' padding, ~half the
-    cost), c = 16 filters as in the original code.
+    cost) and c = 8 filters instead of 16 (4x cheaper inference: ~2 ms instead of ~8 ms per step on one core with tract).
     """
 
-    def __init__(self, c: int = 16):
+    def __init__(self, c: int = 8):
         super().__init__()
         self.stem = conv_bn(6, c)
         self.scales = nn.ModuleList([nn.Sequential(conv_bn(c, c), conv_bn(c, c)) for _ in range(3)])
@@ -58,7 +68,7 @@ class Pressure(Scaled):
         )
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        x = self.stem(x * self.in_scale)
+        x = self.stem(self.prepare(x))
         s1 = F.avg_pool2d(x, 2, 2, ceil_mode=True)  # 31
         s2 = F.avg_pool2d(s1, 2, 2, ceil_mode=True)  # 16
         y = self.scales[0](x) + up(self.scales[1](s1)) + up(self.scales[2](s2))
@@ -92,7 +102,7 @@ class Peak(Scaled):
         self.dense = nn.Sequential(nn.Linear(2 * 16 * 16, hidden), nn.ReLU(), nn.Linear(hidden, 2 * 16 * 16))
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        x = x * self.in_scale
+        x = self.prepare(x)
         total = x
         h = x
         for block, side in zip(self.blocks, self.side):

@@ -81,7 +81,7 @@ def fold_batchnorm(model: nn.Module) -> nn.Module:
     return model
 
 
-def export(model: nn.Module, path: Path, opset: int = 17) -> str:
+def export(model: nn.Module, path: Path, opset: int = 17) -> tuple[str, int]:
     import onnx
 
     model = fold_batchnorm(model)
@@ -104,7 +104,8 @@ def export(model: nn.Module, path: Path, opset: int = 17) -> str:
         extra.unlink()
     for extra in path.parent.glob(tmp.name + ".data"):
         extra.unlink()
-    return exporter
+    version = next((o.version for o in proto.opset_import if o.domain in ("", "ai.onnx")), opset)
+    return exporter, version
 
 
 def check_with_onnxruntime(model: nn.Module, path: Path, x: torch.Tensor) -> float | None:
@@ -200,6 +201,7 @@ def main() -> None:
             stopped = f"time limit {args.time_limit:.0f}s"
             break
     wall = time.time() - t_train
+    zero_val = float((((YV / out_scale) ** 2) * MV).sum() / (MV.sum() * YV.shape[1]))
     model.load_state_dict(best[1])
     model.to("cpu").eval()
     train_eval = evaluate(model, torch.from_numpy(x[:2000]), torch.from_numpy(y[:2000]), torch.from_numpy(m[:2000]),
@@ -207,7 +209,7 @@ def main() -> None:
 
     args.out.mkdir(parents=True, exist_ok=True)
     onnx_path = args.out / f"{args.model}.onnx"
-    exporter = export(model, onnx_path)
+    exporter, opset = export(model, onnx_path)
     ort_err = check_with_onnxruntime(model, onnx_path, torch.from_numpy(xv[:8]))
     print(f"exported {onnx_path} ({onnx_path.stat().st_size} bytes, {exporter}); onnxruntime rel. error {ort_err}")
 
@@ -234,9 +236,10 @@ def main() -> None:
             "loss": "MSE on contact-bearing nodes, per output channel divided by the label RMS (out_scale)",
             "optimizer": f"Adam lr {args.lr}, L2 (weight decay) {args.weight_decay} on conv/dense weights, batch {args.batch}",
             "epochs": epochs_run, "best_epoch": best[2], "stopped_by": stopped,
-            "final_train_loss": train_eval, "final_validation_loss": best[0], "history": history,
+            "final_train_loss": train_eval, "final_validation_loss": best[0],
+            "zero_prediction_validation_loss": zero_val, "history": history,
             "wall_time_seconds": round(wall, 1), "hardware": hardware,
-            "torch_version": torch.__version__, "onnx_version": onnx.__version__, "opset": 17,
+            "torch_version": torch.__version__, "onnx_version": onnx.__version__, "opset": opset,
             "exporter": exporter, "onnxruntime_max_rel_error_vs_torch": ort_err,
             "input_scale": model.in_scale.view(-1).tolist(), "output_scale": model.out_scale.view(-1).tolist(),
         },

@@ -355,3 +355,43 @@ fn onnxruntime_agrees_with_reference() {
         "ONNX Runtime (Rust) differs from the reference by {diff}"
     );
 }
+
+#[test]
+fn shipped_models_load_and_run_on_a_pile_step() {
+    if cannot_run() {
+        return;
+    }
+    let mut registry = deepcontact_warmstart::Registry::with_defaults();
+    deepcontact_onnx::register(&mut registry);
+    let mut world = deepcontact_core::scene::pile(12345, 100)
+        .unwrap()
+        .build(WorldSettings {
+            guard: GuardPolicy::Error,
+            ..WorldSettings::default()
+        })
+        .unwrap();
+    let mut solver = deepcontact_pgs::PgsSolver::default();
+    let mut position = deepcontact_pgs::PgsPositionSolver::default();
+    for _ in 0..60 {
+        world
+            .step(
+                &mut deepcontact_core::CarriedWarmStart,
+                &mut solver,
+                &mut position,
+            )
+            .unwrap();
+    }
+    for shipped in [deepcontact_onnx::PRESSURE, deepcontact_onnx::PEAK] {
+        let card =
+            deepcontact_onnx::ModelCard::load(&shipped.path().with_extension("json")).unwrap();
+        assert_eq!(card.name, shipped.name);
+        assert!(card.parameters > 0);
+        let mut provider = registry.build_provider(shipped.name).unwrap();
+        assert_eq!(provider.name(), shipped.name);
+        let report = world
+            .step(provider.as_mut(), &mut solver, &mut position)
+            .unwrap();
+        assert!(report.contacts > 0);
+        assert_eq!(report.fallbacks, 0, "{} fell back to zeros", shipped.name);
+    }
+}
