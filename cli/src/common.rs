@@ -82,6 +82,7 @@ impl SolverArgs {
 /// The registry with every provider and solver this build knows.
 pub fn registry() -> Registry {
     let mut registry = Registry::with_defaults();
+    deepcontact_grid::register(&mut registry);
     deepcontact_onnx::register(&mut registry);
     {
         // deepcontact-lcp: PSOR and Newton on the assembled Delassus matrix (faer).

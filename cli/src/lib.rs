@@ -5,6 +5,7 @@
 pub mod common;
 pub mod compare;
 pub mod generate;
+pub mod grid_roundtrip;
 pub mod plots;
 pub mod render;
 pub mod simulate;

@@ -1,7 +1,7 @@
 //! `deepcontact`: simulate the thesis scenes, compare warm starts, and more.
 
 use clap::{Parser, Subcommand};
-use deepcontact_cli::{compare, generate, simulate};
+use deepcontact_cli::{compare, generate, grid_roundtrip, simulate};
 
 /// 2D rigid-body contacts solved iteratively, with pluggable warm starts.
 #[derive(Debug, Parser)]
@@ -19,6 +19,8 @@ enum Command {
     Generate(generate::GenerateArgs),
     /// Compare warm starts (× solvers) on the thesis pile over several seeds: tables and figures.
     Compare(compare::CompareArgs),
+    /// The thesis's Table 1: body-mass and contact-impulse loss of particles → grid → particles.
+    GridRoundtrip(grid_roundtrip::GridRoundtripArgs),
 }
 
 fn main() {
@@ -27,6 +29,7 @@ fn main() {
         Command::Simulate(args) => simulate::run(args),
         Command::Generate(args) => generate::run(args),
         Command::Compare(args) => compare::run(args),
+        Command::GridRoundtrip(args) => grid_roundtrip::run(args),
     };
     if let Err(e) = result {
         eprintln!("error: {e}");

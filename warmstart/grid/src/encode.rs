@@ -74,7 +74,15 @@ impl GridEncoder {
     }
 
     fn check_len(what: &'static str, expected: usize, got: usize) -> Result<(), GridError> {
-        if expected == got { Ok(()) } else { Err(GridError::LengthMismatch { what, expected, got }) }
+        if expected == got {
+            Ok(())
+        } else {
+            Err(GridError::LengthMismatch {
+                what,
+                expected,
+                got,
+            })
+        }
     }
 
     /// The 6 input channels of a world: zeroes `input` (`6 × nodes`), spreads mass,
@@ -87,25 +95,50 @@ impl GridEncoder {
     /// those of the step being solved, but the velocities of bodies in islands solved
     /// earlier in the step are already updated: encode once per step, at island 0, to
     /// see the state before any solve.
-    pub fn encode_world(&mut self, world: &World, input: &mut [f64]) -> Result<EncodeStats, GridError> {
+    pub fn encode_world(
+        &mut self,
+        world: &World,
+        input: &mut [f64],
+    ) -> Result<EncodeStats, GridError> {
         let n = self.layout.nodes();
         Self::check_len("input grid", INPUT_CHANNELS.len() * n, input.len())?;
         input.fill(0.0);
         self.positions.clear();
         self.values.clear();
-        for b in world.bodies().iter().filter(|b| b.kind == BodyKind::Dynamic) {
+        for b in world
+            .bodies()
+            .iter()
+            .filter(|b| b.kind == BodyKind::Dynamic)
+        {
             self.positions.push(b.position);
-            self.values.extend([b.mass, b.linear_velocity.x, b.linear_velocity.y, b.angular_velocity]);
+            self.values.extend([
+                b.mass,
+                b.linear_velocity.x,
+                b.linear_velocity.y,
+                b.angular_velocity,
+            ]);
         }
-        let body = self.transfer.particles_to_grid(&self.positions, &self.values, 4, &mut input[CH_MASS * n..CH_NX * n])?;
+        let body = self.transfer.particles_to_grid(
+            &self.positions,
+            &self.values,
+            4,
+            &mut input[CH_MASS * n..CH_NX * n],
+        )?;
         self.positions.clear();
         self.values.clear();
         for c in world.raw_contacts() {
             self.positions.push(c.point);
             self.values.extend([c.normal.x, c.normal.y]);
         }
-        let contact = self.transfer.particles_to_grid(&self.positions, &self.values, 2, &mut input[CH_NX * n..])?;
-        let walls = self.walls.nodes(&self.layout.grid, world.bodies(), self.layout.wall_band);
+        let contact = self.transfer.particles_to_grid(
+            &self.positions,
+            &self.values,
+            2,
+            &mut input[CH_NX * n..],
+        )?;
+        let walls = self
+            .walls
+            .nodes(&self.layout.grid, world.bodies(), self.layout.wall_band);
         for &node in walls {
             input[CH_MASS * n + node as usize] = self.layout.wall_mass;
         }
@@ -122,7 +155,11 @@ impl GridEncoder {
     /// foreign engines): bodies with `inv_mass > 0` give mass `1 / inv_mass` and their
     /// velocities; static bodies are skipped and no wall nodes are marked (their shapes
     /// are unknown).
-    pub fn encode_problem(&mut self, problem: &ContactProblem, input: &mut [f64]) -> Result<EncodeStats, GridError> {
+    pub fn encode_problem(
+        &mut self,
+        problem: &ContactProblem,
+        input: &mut [f64],
+    ) -> Result<EncodeStats, GridError> {
         let n = self.layout.nodes();
         Self::check_len("input grid", INPUT_CHANNELS.len() * n, input.len())?;
         input.fill(0.0);
@@ -130,16 +167,31 @@ impl GridEncoder {
         self.values.clear();
         for b in problem.bodies.iter().filter(|b| b.inv_mass > 0.0) {
             self.positions.push(b.position);
-            self.values.extend([1.0 / b.inv_mass, b.linear_velocity.x, b.linear_velocity.y, b.angular_velocity]);
+            self.values.extend([
+                1.0 / b.inv_mass,
+                b.linear_velocity.x,
+                b.linear_velocity.y,
+                b.angular_velocity,
+            ]);
         }
-        let body = self.transfer.particles_to_grid(&self.positions, &self.values, 4, &mut input[CH_MASS * n..CH_NX * n])?;
+        let body = self.transfer.particles_to_grid(
+            &self.positions,
+            &self.values,
+            4,
+            &mut input[CH_MASS * n..CH_NX * n],
+        )?;
         self.positions.clear();
         self.values.clear();
         for p in &problem.points {
             self.positions.push(p.point);
             self.values.extend([p.normal.x, p.normal.y]);
         }
-        let contact = self.transfer.particles_to_grid(&self.positions, &self.values, 2, &mut input[CH_NX * n..])?;
+        let contact = self.transfer.particles_to_grid(
+            &self.positions,
+            &self.values,
+            2,
+            &mut input[CH_NX * n..],
+        )?;
         Ok(EncodeStats {
             bodies: body.particles,
             contacts: contact.particles,
@@ -158,17 +210,31 @@ impl GridEncoder {
         output: &mut [f64],
     ) -> Result<TransferStats, GridError> {
         Self::check_len("impulses", positions.len(), impulses.len())?;
-        Self::check_len("output grid", OUTPUT_CHANNELS.len() * self.layout.nodes(), output.len())?;
+        Self::check_len(
+            "output grid",
+            OUTPUT_CHANNELS.len() * self.layout.nodes(),
+            output.len(),
+        )?;
         output.fill(0.0);
         self.values.clear();
-        self.values.extend(impulses.iter().flat_map(|i| [i.normal, i.tangent]));
-        self.transfer.particles_to_grid(positions, &self.values, 2, output)
+        self.values
+            .extend(impulses.iter().flat_map(|i| [i.normal, i.tangent]));
+        self.transfer
+            .particles_to_grid(positions, &self.values, 2, output)
     }
 
     /// The labels of a world after a step: the final impulse of every contact point of
     /// the last narrow phase (matched by contact id in [`World::contacts`]).
-    pub fn encode_world_labels(&mut self, world: &World, output: &mut [f64]) -> Result<TransferStats, GridError> {
-        Self::check_len("output grid", OUTPUT_CHANNELS.len() * self.layout.nodes(), output.len())?;
+    pub fn encode_world_labels(
+        &mut self,
+        world: &World,
+        output: &mut [f64],
+    ) -> Result<TransferStats, GridError> {
+        Self::check_len(
+            "output grid",
+            OUTPUT_CHANNELS.len() * self.layout.nodes(),
+            output.len(),
+        )?;
         output.fill(0.0);
         let solved = world.contacts();
         self.positions.clear();
@@ -181,7 +247,8 @@ impl GridEncoder {
             self.positions.push(c.point);
             self.values.extend([imp.normal, imp.tangent]);
         }
-        self.transfer.particles_to_grid(&self.positions, &self.values, 2, output)
+        self.transfer
+            .particles_to_grid(&self.positions, &self.values, 2, output)
     }
 
     /// Grid → contact points for the 2 output channels (a model's prediction), with the
@@ -196,7 +263,9 @@ impl GridEncoder {
         Self::check_len("impulses", positions.len(), impulses.len())?;
         self.back.clear();
         self.back.resize(2 * positions.len(), 0.0);
-        let stats = self.transfer.grid_to_particles(output, 2, positions, &mut self.back)?;
+        let stats = self
+            .transfer
+            .grid_to_particles(output, 2, positions, &mut self.back)?;
         for (imp, v) in impulses.iter_mut().zip(self.back.chunks_exact(2)) {
             *imp = Impulse::new(v[0].max(0.0), v[1]);
         }

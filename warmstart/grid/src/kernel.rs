@@ -72,12 +72,14 @@ impl Kernel {
             return Err(GridError::InvalidSupport { h });
         }
         match *self {
-            Kernel::Gaussian { sigma } if !(sigma.is_finite() && sigma > 0.0) => Err(GridError::InvalidKernel {
-                kernel: "gaussian",
-                param: "sigma",
-                value: sigma,
-                reason: "must be finite and > 0",
-            }),
+            Kernel::Gaussian { sigma } if !(sigma.is_finite() && sigma > 0.0) => {
+                Err(GridError::InvalidKernel {
+                    kernel: "gaussian",
+                    param: "sigma",
+                    value: sigma,
+                    reason: "must be finite and > 0",
+                })
+            }
             _ => Ok(()),
         }
     }
@@ -93,7 +95,11 @@ impl Kernel {
             Kernel::Gaussian { sigma } => {
                 let s2 = 2.0 * sigma * sigma;
                 let norm = PI * s2 * (1.0 - (-h * h / s2).exp());
-                if norm > 0.0 { (-r * r / s2).exp() / norm } else { 0.0 }
+                if norm > 0.0 {
+                    (-r * r / s2).exp() / norm
+                } else {
+                    0.0
+                }
             }
         }
     }
@@ -134,7 +140,11 @@ impl FromStr for Kernel {
             "poly6" => Ok(Kernel::Poly6),
             "spiky" => Ok(Kernel::Spiky),
             "gaussian" | "gauss" => Ok(Kernel::Gaussian { sigma: 1.0 }),
-            _ => Err(GridError::UnknownName { what: "kernel", value: s.to_string(), accepted: Self::NAMES }),
+            _ => Err(GridError::UnknownName {
+                what: "kernel",
+                value: s.to_string(),
+                accepted: Self::NAMES,
+            }),
         }
     }
 }
@@ -192,7 +202,12 @@ mod tests {
     #[test]
     fn kernels_integrate_to_one_radially() {
         for h in [0.125, 0.5, 2.0] {
-            for k in [Kernel::Poly6, Kernel::Spiky, Kernel::gaussian_for(h), Kernel::Gaussian { sigma: h }] {
+            for k in [
+                Kernel::Poly6,
+                Kernel::Spiky,
+                Kernel::gaussian_for(h),
+                Kernel::Gaussian { sigma: h },
+            ] {
                 let i = radial_integral(k, h);
                 assert!((i - 1.0).abs() < 1e-6, "{k} h={h}: {i}");
             }
@@ -206,7 +221,10 @@ mod tests {
             let p = k.prepare(h);
             let c = k.value(0.1, h) / p.weight(0.01);
             for r in [0.0, 0.2, 0.3, 0.45] {
-                assert!((k.value(r, h) - c * p.weight(r * r)).abs() < 1e-9 * k.value(0.0, h), "{k} r={r}");
+                assert!(
+                    (k.value(r, h) - c * p.weight(r * r)).abs() < 1e-9 * k.value(0.0, h),
+                    "{k} r={r}"
+                );
             }
         }
     }
@@ -221,6 +239,9 @@ mod tests {
         assert_eq!(Kernel::Spiky.value(f64::NAN, 0.5), 0.0);
         let json = serde_json::to_string(&Kernel::Gaussian { sigma: 0.25 }).unwrap();
         assert_eq!(json, r#"{"kind":"gaussian","sigma":0.25}"#);
-        assert_eq!(serde_json::from_str::<Kernel>(r#"{"kind":"poly6"}"#).unwrap(), Kernel::Poly6);
+        assert_eq!(
+            serde_json::from_str::<Kernel>(r#"{"kind":"poly6"}"#).unwrap(),
+            Kernel::Poly6
+        );
     }
 }

@@ -141,7 +141,10 @@ impl GridLayout {
     /// Checks every field.
     pub fn validate(&self) -> Result<(), GridError> {
         if self.version != Self::VERSION {
-            return Err(GridError::UnsupportedVersion { got: self.version, supported: Self::VERSION });
+            return Err(GridError::UnsupportedVersion {
+                got: self.version,
+                supported: Self::VERSION,
+            });
         }
         self.grid.validate()?;
         self.kernel.validate(self.h)?;
@@ -159,7 +162,11 @@ impl GridLayout {
         check("input", &INPUT_CHANNELS, &self.input_channels)?;
         check("output", &OUTPUT_CHANNELS, &self.output_channels)?;
         if !self.wall_mass.is_finite() {
-            return Err(GridError::InvalidSetting { name: "wall_mass", value: self.wall_mass, reason: "must be finite" });
+            return Err(GridError::InvalidSetting {
+                name: "wall_mass",
+                value: self.wall_mass,
+                reason: "must be finite",
+            });
         }
         if !(self.wall_band.is_finite() && self.wall_band >= 0.0) {
             return Err(GridError::InvalidSetting {
@@ -199,7 +206,9 @@ impl GridLayout {
     /// A [`Transfer`] configured by this layout (validates it first).
     pub fn transfer(&self) -> Result<Transfer, GridError> {
         self.validate()?;
-        Ok(Transfer::new(self.grid, self.kernel, self.h)?.with_search(self.search).with_g2p(self.g2p))
+        Ok(Transfer::new(self.grid, self.kernel, self.h)?
+            .with_search(self.search)
+            .with_g2p(self.g2p))
     }
 
     /// Pretty-printed JSON.
@@ -210,21 +219,27 @@ impl GridLayout {
 
     /// Parses and validates JSON.
     pub fn from_json(text: &str) -> Result<Self, GridError> {
-        let layout: Self = serde_json::from_str(text).map_err(|e| GridError::Json(e.to_string()))?;
+        let layout: Self =
+            serde_json::from_str(text).map_err(|e| GridError::Json(e.to_string()))?;
         layout.validate()?;
         Ok(layout)
     }
 
     /// Reads and validates a layout file.
     pub fn load(path: &Path) -> Result<Self, GridError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| GridError::Io { path: path.display().to_string(), reason: e.to_string() })?;
+        let text = std::fs::read_to_string(path).map_err(|e| GridError::Io {
+            path: path.display().to_string(),
+            reason: e.to_string(),
+        })?;
         Self::from_json(&text)
     }
 
     /// Writes the layout as JSON (to a temporary file renamed into place).
     pub fn save(&self, path: &Path) -> Result<(), GridError> {
-        let io = |e: std::io::Error| GridError::Io { path: path.display().to_string(), reason: e.to_string() };
+        let io = |e: std::io::Error| GridError::Io {
+            path: path.display().to_string(),
+            reason: e.to_string(),
+        };
         let mut tmp = path.as_os_str().to_owned();
         tmp.push(".tmp");
         std::fs::write(&tmp, self.to_json() + "\n").map_err(io)?;
@@ -263,26 +278,40 @@ mod tests {
     fn bad_layouts_are_rejected() {
         let mut l = GridLayout::thesis();
         l.input_channels.swap(0, 1);
-        assert!(matches!(l.validate(), Err(GridError::ChannelMismatch { which: "input", .. })));
+        assert!(matches!(
+            l.validate(),
+            Err(GridError::ChannelMismatch { which: "input", .. })
+        ));
         let mut l = GridLayout::thesis();
         l.version = 2;
-        assert!(matches!(l.validate(), Err(GridError::UnsupportedVersion { got: 2, .. })));
+        assert!(matches!(
+            l.validate(),
+            Err(GridError::UnsupportedVersion { got: 2, .. })
+        ));
         let mut l = GridLayout::thesis();
         l.h = -1.0;
         assert!(l.transfer().is_err());
         let mut l = GridLayout::thesis();
         l.wall_band = f64::NAN;
         assert!(l.validate().is_err());
-        assert!(matches!(GridLayout::from_json("{"), Err(GridError::Json(_))));
+        assert!(matches!(
+            GridLayout::from_json("{"),
+            Err(GridError::Json(_))
+        ));
         assert!(GridLayout::load(Path::new("/nonexistent/layout.json")).is_err());
     }
 
     #[test]
     fn save_and_load() {
-        let dir = std::env::temp_dir().join(format!("deepcontact-grid-layout-{}", std::process::id()));
+        let dir =
+            std::env::temp_dir().join(format!("deepcontact-grid-layout-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("layout.json");
-        let l = GridLayout::new(GridSpec::new([1.0, 2.0], 0.125, 10, 20).unwrap(), Kernel::gaussian_for(0.5), 0.5);
+        let l = GridLayout::new(
+            GridSpec::new([1.0, 2.0], 0.125, 10, 20).unwrap(),
+            Kernel::gaussian_for(0.5),
+            0.5,
+        );
         l.save(&path).unwrap();
         assert_eq!(GridLayout::load(&path).unwrap(), l);
         std::fs::remove_dir_all(&dir).ok();

@@ -51,8 +51,8 @@ pub use encode::{EncodeStats, GridEncoder};
 pub use error::GridError;
 pub use kernel::Kernel;
 pub use layout::{
-    CH_MASS, CH_NORMAL, CH_NX, CH_NY, CH_OMEGA, CH_TANGENT, CH_VX, CH_VY, GridLayout, INPUT_CHANNELS, OUTPUT_CHANNELS,
-    TensorOrder,
+    CH_MASS, CH_NORMAL, CH_NX, CH_NY, CH_OMEGA, CH_TANGENT, CH_VX, CH_VY, GridLayout,
+    INPUT_CHANNELS, OUTPUT_CHANNELS, TensorOrder,
 };
 pub use provider::{GridFilterConfig, GridFiltered, register};
 pub use roundtrip::{RoundTrip, RoundTripSums, TABLE1_VALUES, THESIS_TABLE1};

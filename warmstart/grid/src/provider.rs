@@ -29,7 +29,13 @@ pub struct GridFilterConfig {
 
 impl Default for GridFilterConfig {
     fn default() -> Self {
-        Self { spacing: 0.25, h: 0.5, kernel: Kernel::Poly6, g2p: G2pMethod::Sph, search: NeighbourSearch::Exact }
+        Self {
+            spacing: 0.25,
+            h: 0.5,
+            kernel: Kernel::Poly6,
+            g2p: G2pMethod::Sph,
+            search: NeighbourSearch::Exact,
+        }
     }
 }
 
@@ -37,7 +43,9 @@ impl GridFilterConfig {
     /// Checks spacing, `h` and the kernel.
     pub fn validate(&self) -> Result<(), GridError> {
         if !(self.spacing.is_finite() && self.spacing > 0.0) {
-            return Err(GridError::InvalidSpacing { spacing: self.spacing });
+            return Err(GridError::InvalidSpacing {
+                spacing: self.spacing,
+            });
         }
         self.kernel.validate(self.h)
     }
@@ -55,32 +63,59 @@ impl GridFilterConfig {
         };
         let mut kernel = match p.string("kernel") {
             None => d.kernel,
-            Some(v) => v.parse::<Kernel>().map_err(|e| invalid("kernel", v, e.to_string()))?,
+            Some(v) => v
+                .parse::<Kernel>()
+                .map_err(|e| invalid("kernel", v, e.to_string()))?,
         };
         if let Kernel::Gaussian { sigma } = &mut kernel {
             *sigma = h / 3.0;
         }
         if let Some(v) = p.string("sigma") {
-            let s: f64 = v.parse().map_err(|e: std::num::ParseFloatError| invalid("sigma", v, e.to_string()))?;
+            let s: f64 = v
+                .parse()
+                .map_err(|e: std::num::ParseFloatError| invalid("sigma", v, e.to_string()))?;
             match &mut kernel {
                 Kernel::Gaussian { sigma } => *sigma = s,
-                _ => return Err(invalid("sigma", v, "only the gaussian kernel takes sigma".into())),
+                _ => {
+                    return Err(invalid(
+                        "sigma",
+                        v,
+                        "only the gaussian kernel takes sigma".into(),
+                    ));
+                }
             }
         }
         let g2p = match p.string("transfer") {
             None => d.g2p,
-            Some(v) => v.parse().map_err(|e: GridError| invalid("transfer", v, e.to_string()))?,
+            Some(v) => v
+                .parse()
+                .map_err(|e: GridError| invalid("transfer", v, e.to_string()))?,
         };
         let search = match p.string("search") {
             None => d.search,
-            Some(v) => v.parse().map_err(|e: GridError| invalid("search", v, e.to_string()))?,
+            Some(v) => v
+                .parse()
+                .map_err(|e: GridError| invalid("search", v, e.to_string()))?,
         };
-        let config = Self { spacing, h, kernel, g2p, search };
+        let config = Self {
+            spacing,
+            h,
+            kernel,
+            g2p,
+            search,
+        };
         config.validate().map_err(|e| {
             let (param, value) = match e {
                 GridError::InvalidSpacing { .. } => ("res", spacing),
                 GridError::InvalidSupport { .. } => ("h", h),
-                _ => ("sigma", if let Kernel::Gaussian { sigma } = kernel { sigma } else { f64::NAN }),
+                _ => (
+                    "sigma",
+                    if let Kernel::Gaussian { sigma } = kernel {
+                        sigma
+                    } else {
+                        f64::NAN
+                    },
+                ),
             };
             invalid(param, &value.to_string(), e.to_string())
         })?;
@@ -113,7 +148,11 @@ impl GridFilterConfig {
         if self.search == NeighbourSearch::KdTree {
             parts.push("search=kdtree".into());
         }
-        if parts.is_empty() { "grid".into() } else { format!("grid:{}", parts.join(",")) }
+        if parts.is_empty() {
+            "grid".into()
+        } else {
+            format!("grid:{}", parts.join(","))
+        }
     }
 }
 
@@ -164,7 +203,9 @@ impl GridFiltered {
         config.validate()?;
         // A placeholder grid; each call moves the transfer to the island's grid.
         let spec = GridSpec::new([0.0, 0.0], config.spacing, 1, 1)?;
-        let transfer = Transfer::new(spec, config.kernel, config.h)?.with_search(config.search).with_g2p(config.g2p);
+        let transfer = Transfer::new(spec, config.kernel, config.h)?
+            .with_search(config.search)
+            .with_g2p(config.g2p);
         Ok(Self {
             inner,
             name: config.name(),
@@ -213,7 +254,10 @@ impl GridFiltered {
             Some((lo, hi)) => {
                 // Whole nodes added below / above where points lie beyond half a spacing.
                 let below = |l: f64, p: f64| ((l - p) / s - 0.5).ceil().max(0.0);
-                let origin = Vector::new(lo.x - s * below(lo.x, pmin.x), lo.y - s * below(lo.y, pmin.y));
+                let origin = Vector::new(
+                    lo.x - s * below(lo.x, pmin.x),
+                    lo.y - s * below(lo.y, pmin.y),
+                );
                 let top = |h: f64, p: f64, o: f64| {
                     let a = ((h - o) / s - 1e-9).ceil();
                     let b = ((p - o) / s - 0.5).ceil();
@@ -240,12 +284,15 @@ impl GridFiltered {
         let spec = self.grid_for(ctx)?;
         self.transfer.set_spec(spec)?;
         self.positions.clear();
-        self.positions.extend(ctx.problem.points.iter().map(|p| p.point));
+        self.positions
+            .extend(ctx.problem.points.iter().map(|p| p.point));
         self.values.clear();
-        self.values.extend(out.iter().flat_map(|i| [i.normal, i.tangent]));
+        self.values
+            .extend(out.iter().flat_map(|i| [i.normal, i.tangent]));
         self.back.clear();
         self.back.resize(self.values.len(), 0.0);
-        self.transfer.round_trip(&self.positions, &self.values, 2, &mut self.back)?;
+        self.transfer
+            .round_trip(&self.positions, &self.values, 2, &mut self.back)?;
         for (o, v) in out.iter_mut().zip(self.back.chunks_exact(2)) {
             // SPH and bilinear weights are non-negative, so non-negative normals stay so;
             // the clamp only guards against an inner provider's negative values.
@@ -260,15 +307,27 @@ impl WarmStart for GridFiltered {
         &self.name
     }
 
-    fn warm_start(&mut self, ctx: &WarmStartContext<'_>, out: &mut [Impulse]) -> Result<(), WarmStartError> {
+    fn warm_start(
+        &mut self,
+        ctx: &WarmStartContext<'_>,
+        out: &mut [Impulse],
+    ) -> Result<(), WarmStartError> {
         self.inner.warm_start(ctx, out)?;
         if out.len() != ctx.problem.points.len() {
-            return Err(WarmStartError::WrongLength { expected: ctx.problem.points.len(), got: out.len() });
+            return Err(WarmStartError::WrongLength {
+                expected: ctx.problem.points.len(),
+                got: out.len(),
+            });
         }
         if let Some((point, imp)) = out.iter().enumerate().find(|(_, i)| !i.is_finite()) {
-            return Err(WarmStartError::NonFinite { point, normal: imp.normal, tangent: imp.tangent });
+            return Err(WarmStartError::NonFinite {
+                point,
+                normal: imp.normal,
+                tangent: imp.tangent,
+            });
         }
-        self.filter(ctx, out).map_err(|e| WarmStartError::Provider(format!("{}: {e}", self.name)))
+        self.filter(ctx, out)
+            .map_err(|e| WarmStartError::Provider(format!("{}: {e}", self.name)))
     }
 
     fn observe(&mut self, ctx: &WarmStartContext<'_>, solved: &[Impulse]) {

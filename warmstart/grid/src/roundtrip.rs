@@ -55,12 +55,20 @@ impl RoundTripSums {
 
     /// Mean absolute body-mass difference (0 without bodies).
     pub fn body_mean(&self) -> f64 {
-        if self.bodies > 0 { self.body_abs_diff / self.bodies as f64 } else { 0.0 }
+        if self.bodies > 0 {
+            self.body_abs_diff / self.bodies as f64
+        } else {
+            0.0
+        }
     }
 
     /// Mean absolute contact normal-impulse difference (0 without contacts).
     pub fn contact_mean(&self) -> f64 {
-        if self.contacts > 0 { self.contact_abs_diff / self.contacts as f64 } else { 0.0 }
+        if self.contacts > 0 {
+            self.contact_abs_diff / self.contacts as f64
+        } else {
+            0.0
+        }
     }
 }
 
@@ -76,16 +84,34 @@ pub struct RoundTrip {
 impl RoundTrip {
     /// SPH both ways with `kernel` of support `h` on a grid of spacing `res` covering
     /// `[min, max]` (the pile's box).
-    pub fn new(min: Vector, max: Vector, res: f64, h: f64, kernel: Kernel) -> Result<Self, GridError> {
+    pub fn new(
+        min: Vector,
+        max: Vector,
+        res: f64,
+        h: f64,
+        kernel: Kernel,
+    ) -> Result<Self, GridError> {
         let spec = GridSpec::covering(min, max, res)?;
-        Ok(Self { transfer: Transfer::new(spec, kernel, h)?, positions: Vec::new(), values: Vec::new(), back: Vec::new() })
+        Ok(Self {
+            transfer: Transfer::new(spec, kernel, h)?,
+            positions: Vec::new(),
+            values: Vec::new(),
+            back: Vec::new(),
+        })
     }
 
     fn run(&mut self) -> Result<(f64, usize), GridError> {
         self.back.clear();
         self.back.resize(self.values.len(), 0.0);
-        let stats = self.transfer.round_trip(&self.positions, &self.values, 1, &mut self.back)?;
-        let diff = self.values.iter().zip(&self.back).map(|(a, b)| (a - b).abs()).sum();
+        let stats = self
+            .transfer
+            .round_trip(&self.positions, &self.values, 1, &mut self.back)?;
+        let diff = self
+            .values
+            .iter()
+            .zip(&self.back)
+            .map(|(a, b)| (a - b).abs())
+            .sum();
         Ok((diff, stats.lost))
     }
 
@@ -95,7 +121,11 @@ impl RoundTrip {
     pub fn world(&mut self, world: &World) -> Result<RoundTripSums, GridError> {
         self.positions.clear();
         self.values.clear();
-        for b in world.bodies().iter().filter(|b| b.kind == BodyKind::Dynamic) {
+        for b in world
+            .bodies()
+            .iter()
+            .filter(|b| b.kind == BodyKind::Dynamic)
+        {
             self.positions.push(b.position);
             self.values.push(b.mass);
         }
@@ -114,6 +144,13 @@ impl RoundTrip {
         }
         let contacts = self.positions.len();
         let (contact_abs_diff, lost_contacts) = self.run()?;
-        Ok(RoundTripSums { body_abs_diff, bodies, lost_bodies, contact_abs_diff, contacts, lost_contacts })
+        Ok(RoundTripSums {
+            body_abs_diff,
+            bodies,
+            lost_bodies,
+            contact_abs_diff,
+            contacts,
+            lost_contacts,
+        })
     }
 }

@@ -46,7 +46,12 @@ impl GridSpec {
 
     /// A validated grid.
     pub fn new(origin: [f64; 2], spacing: f64, nx: usize, ny: usize) -> Result<Self, GridError> {
-        let spec = Self { origin, spacing, nx, ny };
+        let spec = Self {
+            origin,
+            spacing,
+            nx,
+            ny,
+        };
         spec.validate()?;
         Ok(spec)
     }
@@ -59,7 +64,12 @@ impl GridSpec {
             || min.x > max.x
             || min.y > max.y
         {
-            return Err(GridError::InvalidRegion { min_x: min.x, min_y: min.y, max_x: max.x, max_y: max.y });
+            return Err(GridError::InvalidRegion {
+                min_x: min.x,
+                min_y: min.y,
+                max_x: max.x,
+                max_y: max.y,
+            });
         }
         if !(spacing.is_finite() && spacing > 0.0) {
             return Err(GridError::InvalidSpacing { spacing });
@@ -75,24 +85,43 @@ impl GridSpec {
             }
             Ok(cells as usize + 1)
         };
-        Self::new([min.x, min.y], spacing, count(max.x - min.x)?, count(max.y - min.y)?)
+        Self::new(
+            [min.x, min.y],
+            spacing,
+            count(max.x - min.x)?,
+            count(max.y - min.y)?,
+        )
     }
 
     /// The thesis grid: 61 × 61 nodes, 0.25 m apart, covering `[0, 15]²`.
     pub fn thesis() -> Self {
-        Self { origin: [0.0, 0.0], spacing: 0.25, nx: 61, ny: 61 }
+        Self {
+            origin: [0.0, 0.0],
+            spacing: 0.25,
+            nx: 61,
+            ny: 61,
+        }
     }
 
     /// Checks origin, spacing and node counts.
     pub fn validate(&self) -> Result<(), GridError> {
         if !(self.origin[0].is_finite() && self.origin[1].is_finite()) {
-            return Err(GridError::InvalidOrigin { x: self.origin[0], y: self.origin[1] });
+            return Err(GridError::InvalidOrigin {
+                x: self.origin[0],
+                y: self.origin[1],
+            });
         }
         if !(self.spacing.is_finite() && self.spacing > 0.0) {
-            return Err(GridError::InvalidSpacing { spacing: self.spacing });
+            return Err(GridError::InvalidSpacing {
+                spacing: self.spacing,
+            });
         }
         if self.nx == 0 || self.ny == 0 {
-            return Err(GridError::InvalidNodeCount { nx: self.nx, ny: self.ny, reason: "need at least one node per axis" });
+            return Err(GridError::InvalidNodeCount {
+                nx: self.nx,
+                ny: self.ny,
+                reason: "need at least one node per axis",
+            });
         }
         match self.nx.checked_mul(self.ny) {
             Some(n) if n <= Self::MAX_NODES => {}
@@ -109,7 +138,10 @@ impl GridSpec {
             self.origin[1] + self.spacing * (self.ny - 1) as f64,
         ];
         if !(last[0].is_finite() && last[1].is_finite()) {
-            return Err(GridError::InvalidOrigin { x: last[0], y: last[1] });
+            return Err(GridError::InvalidOrigin {
+                x: last[0],
+                y: last[1],
+            });
         }
         Ok(())
     }
@@ -141,7 +173,10 @@ impl GridSpec {
     /// Position of node `(ix, iy)`.
     #[inline]
     pub fn node(&self, ix: usize, iy: usize) -> Vector {
-        Vector::new(self.origin[0] + self.spacing * ix as f64, self.origin[1] + self.spacing * iy as f64)
+        Vector::new(
+            self.origin[0] + self.spacing * ix as f64,
+            self.origin[1] + self.spacing * iy as f64,
+        )
     }
 
     /// Position of the node with flat index `index`.
@@ -178,7 +213,11 @@ impl GridSpec {
         let axis = |x: f64, o: f64, n: usize| -> Option<(usize, usize)> {
             let lo = ((x - r - o) * inv).ceil().max(0.0);
             let hi = ((x + r - o) * inv).floor().min((n - 1) as f64);
-            if lo <= hi { Some((lo as usize, hi as usize)) } else { None }
+            if lo <= hi {
+                Some((lo as usize, hi as usize))
+            } else {
+                None
+            }
         };
         let (ix0, ix1) = axis(p.x, self.origin[0], self.nx)?;
         let (iy0, iy1) = axis(p.y, self.origin[1], self.ny)?;
@@ -234,7 +273,10 @@ mod tests {
     fn box_range_clamps_and_rejects() {
         let g = GridSpec::thesis();
         assert_eq!(g.box_range(&Vector::new(1.0, 1.0), 0.5), Some((2, 6, 2, 6)));
-        assert_eq!(g.box_range(&Vector::new(0.1, 14.9), 0.5), Some((0, 2, 58, 60)));
+        assert_eq!(
+            g.box_range(&Vector::new(0.1, 14.9), 0.5),
+            Some((0, 2, 58, 60))
+        );
         assert_eq!(g.box_range(&Vector::new(-5.0, 1.0), 0.5), None);
         assert_eq!(g.box_range(&Vector::new(1e300, 1.0), 0.5), None);
         assert_eq!(g.box_range(&Vector::new(f64::NAN, 1.0), 0.5), None);

@@ -44,8 +44,22 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use serde::{Deserialize, Serialize};
 
 use crate::error::GridError;
-use crate::kernel::{Kernel, Prepared};
+use crate::kernel::{Kernel, Kind, Prepared};
 use crate::spec::GridSpec;
+
+/// `floor(v)` as an integer without a libm call (saturating for huge `v`; `v` finite).
+#[inline(always)]
+fn floor_i(v: f64) -> i64 {
+    let t = v as i64;
+    t.saturating_sub(i64::from((t as f64) > v))
+}
+
+/// `ceil(v)` as an integer without a libm call (saturating for huge `v`; `v` finite).
+#[inline(always)]
+fn ceil_i(v: f64) -> i64 {
+    let t = v as i64;
+    t.saturating_add(i64::from((t as f64) < v))
+}
 
 /// How the (particle, node) pairs within `h` are found. Default [`NeighbourSearch::Exact`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -65,7 +79,11 @@ impl std::str::FromStr for NeighbourSearch {
         match s.trim().to_ascii_lowercase().as_str() {
             "exact" => Ok(Self::Exact),
             "kdtree" | "kd-tree" | "kd" => Ok(Self::KdTree),
-            _ => Err(GridError::UnknownName { what: "neighbour search", value: s.into(), accepted: "exact, kdtree" }),
+            _ => Err(GridError::UnknownName {
+                what: "neighbour search",
+                value: s.into(),
+                accepted: "exact, kdtree",
+            }),
         }
     }
 }
@@ -90,7 +108,11 @@ impl std::str::FromStr for G2pMethod {
         match s.trim().to_ascii_lowercase().as_str() {
             "sph" => Ok(Self::Sph),
             "bilinear" => Ok(Self::Bilinear),
-            _ => Err(GridError::UnknownName { what: "transfer", value: s.into(), accepted: "sph, bilinear" }),
+            _ => Err(GridError::UnknownName {
+                what: "transfer",
+                value: s.into(),
+                accepted: "sph, bilinear",
+            }),
         }
     }
 }
@@ -239,8 +261,8 @@ impl Transfer {
     pub fn build_node_tree(&mut self) -> Result<(), GridError> {
         if self.node_tree.is_none() {
             let points = self.spec.positions();
-            let tree =
-                ImmutableKdTree::<f64, 2>::new_from_slice(&points).map_err(|e| GridError::KdTree(format!("{e:?}")))?;
+            let tree = ImmutableKdTree::<f64, 2>::new_from_slice(&points)
+                .map_err(|e| GridError::KdTree(format!("{e:?}")))?;
             self.node_tree = Some(tree);
         }
         Ok(())
@@ -249,10 +271,18 @@ impl Transfer {
     fn check_positions(positions: &[Vector]) -> Result<(), GridError> {
         for (i, p) in positions.iter().enumerate() {
             if !p.x.is_finite() {
-                return Err(GridError::NonFinite { what: "particle position", index: i, value: p.x });
+                return Err(GridError::NonFinite {
+                    what: "particle position",
+                    index: i,
+                    value: p.x,
+                });
             }
             if !p.y.is_finite() {
-                return Err(GridError::NonFinite { what: "particle position", index: i, value: p.y });
+                return Err(GridError::NonFinite {
+                    what: "particle position",
+                    index: i,
+                    value: p.y,
+                });
             }
         }
         Ok(())
@@ -260,72 +290,143 @@ impl Transfer {
 
     fn check_values(what: &'static str, values: &[f64]) -> Result<(), GridError> {
         match values.iter().position(|v| !v.is_finite()) {
-            Some(i) => Err(GridError::NonFinite { what, index: i, value: values[i] }),
+            Some(i) => Err(GridError::NonFinite {
+                what,
+                index: i,
+                value: values[i],
+            }),
             None => Ok(()),
         }
     }
 
     fn check_len(what: &'static str, expected: usize, got: usize) -> Result<(), GridError> {
-        if expected == got { Ok(()) } else { Err(GridError::LengthMismatch { what, expected, got }) }
+        if expected == got {
+            Ok(())
+        } else {
+            Err(GridError::LengthMismatch {
+                what,
+                expected,
+                got,
+            })
+        }
     }
 
     /// Fills the pair lists for `positions` (checked finite by the caller). Returns the
     /// number of particles without any node.
     fn gather(&mut self, positions: &[Vector]) -> Result<usize, GridError> {
-        if self.search == NeighbourSearch::KdTree {
-            self.build_node_tree()?;
-        }
         self.starts.clear();
         self.pair_nodes.clear();
         self.pair_weights.clear();
         self.particle_sum.clear();
         self.starts.push(0);
         let k = self.prepared;
+        if self.search == NeighbourSearch::KdTree {
+            self.build_node_tree()?;
+            self.gather_kd(positions);
+        } else {
+            // One monomorphised loop per kernel, so the kernel is not dispatched per pair.
+            let h2 = k.h2;
+            match k.kind {
+                Kind::Poly6 => self.gather_exact(positions, |r2| {
+                    let d = h2 - r2;
+                    d * d * d
+                }),
+                Kind::Spiky => self.gather_exact(positions, |r2| {
+                    let d = k.h - r2.sqrt();
+                    d * d * d
+                }),
+                Kind::Gaussian => self.gather_exact(positions, |r2| k.weight(r2)),
+            }
+        }
+        let mut lost = 0;
+        for p in 0..positions.len() {
+            let (a, b) = (self.starts[p] as usize, self.starts[p + 1] as usize);
+            lost += usize::from(a == b);
+            self.particle_sum.push(self.pair_weights[a..b].iter().sum());
+        }
+        Ok(lost)
+    }
+
+    /// Exact lookup: per row of the index box, only the columns within the circle.
+    /// Distances are computed in grid units (one unit = one spacing).
+    #[inline(always)]
+    fn gather_exact(&mut self, positions: &[Vector], weight: impl Fn(f64) -> f64) {
         let spec = self.spec;
         let (ox, oy, s) = (spec.origin[0], spec.origin[1], spec.spacing);
-        let mut lost = 0;
+        let s2 = s * s;
+        let inv = 1.0 / s;
+        let hr = self.prepared.h * inv;
+        let hr2 = hr * hr;
+        let (last_x, last_y) = (spec.nx as i64 - 1, spec.ny as i64 - 1);
+        // At most this many nodes per particle: the lists are grown to make room before
+        // each particle and written by index (cheaper than a push per pair), then
+        // truncated to what was written.
+        let per = {
+            let side = 2.0 * hr.ceil() + 1.0;
+            (side * side).min((spec.len()) as f64) as usize
+        };
+        let (nodes, weights) = (&mut self.pair_nodes, &mut self.pair_weights);
+        let mut k = nodes.len();
         for x in positions {
-            let start = self.pair_nodes.len();
-            match (self.search, &self.node_tree) {
-                (NeighbourSearch::KdTree, Some(tree)) => {
-                    let (nodes, weights) = (&mut self.pair_nodes, &mut self.pair_weights);
-                    tree.query(&[x.x, x.y]).within::<SquaredEuclidean<f64>>(k.h2).unsorted().visit(|r| {
-                        let w = k.weight(r.distance);
-                        if w > 0.0 {
-                            nodes.push(r.item);
-                            weights.push(w);
-                        }
-                    });
+            if nodes.len() < k + per {
+                nodes.resize(k + per, 0);
+                weights.resize(k + per, 0.0);
+            }
+            let (tx, ty) = ((x.x - ox) * inv, (x.y - oy) * inv);
+            let iy0 = ceil_i(ty - hr).max(0);
+            let iy1 = floor_i(ty + hr).min(last_y);
+            for iy in iy0..=iy1 {
+                let dy = iy as f64 - ty;
+                let dy2 = dy * dy;
+                let rem = hr2 - dy2;
+                if rem < 0.0 {
+                    continue;
                 }
-                _ => {
-                    if let Some((ix0, ix1, iy0, iy1)) = spec.box_range(x, k.h) {
-                        for iy in iy0..=iy1 {
-                            let dy = oy + s * iy as f64 - x.y;
-                            let dy2 = dy * dy;
-                            let row = iy * spec.nx;
-                            for ix in ix0..=ix1 {
-                                let dx = ox + s * ix as f64 - x.x;
-                                let r2 = dx * dx + dy2;
-                                if r2 <= k.h2 {
-                                    let w = k.weight(r2);
-                                    if w > 0.0 {
-                                        self.pair_nodes.push((row + ix) as u32);
-                                        self.pair_weights.push(w);
-                                    }
-                                }
-                            }
+                let half = rem.sqrt();
+                let ix0 = ceil_i(tx - half).max(0);
+                let ix1 = floor_i(tx + half).min(last_x);
+                let row = iy as usize * spec.nx;
+                for ix in ix0..=ix1 {
+                    let dx = ix as f64 - tx;
+                    let r2 = dx * dx + dy2;
+                    if r2 <= hr2 {
+                        let w = weight(r2 * s2);
+                        if w > 0.0 {
+                            nodes[k] = (row + ix as usize) as u32;
+                            weights[k] = w;
+                            k += 1;
                         }
                     }
                 }
             }
-            let sum: f64 = self.pair_weights[start..].iter().sum();
-            if self.pair_nodes.len() == start {
-                lost += 1;
-            }
-            self.particle_sum.push(sum);
-            self.starts.push(self.pair_nodes.len() as u32);
+            self.starts.push(k as u32);
         }
-        Ok(lost)
+        nodes.truncate(k);
+        weights.truncate(k);
+    }
+
+    /// k-d tree over the nodes (built by the caller), queried per particle.
+    fn gather_kd(&mut self, positions: &[Vector]) {
+        let k = self.prepared;
+        let Some(tree) = &self.node_tree else {
+            // Not reached (the caller builds the tree); keep the lists consistent anyway.
+            self.starts.resize(positions.len() + 1, 0);
+            return;
+        };
+        let (nodes, weights) = (&mut self.pair_nodes, &mut self.pair_weights);
+        for x in positions {
+            tree.query(&[x.x, x.y])
+                .within::<SquaredEuclidean<f64>>(k.h2)
+                .unsorted()
+                .visit(|r| {
+                    let w = k.weight(r.distance);
+                    if w > 0.0 {
+                        nodes.push(r.item);
+                        weights.push(w);
+                    }
+                });
+            self.starts.push(nodes.len() as u32);
+        }
     }
 
     /// P2G of the gathered pairs into `grid` (adds).
@@ -351,7 +452,12 @@ impl Transfer {
 
     /// SPH G2P from the gathered pairs into `out` (overwrites). Errors on a non-finite
     /// grid value that reaches a particle.
-    fn gather_back(&mut self, grid: &[f64], channels: usize, out: &mut [f64]) -> Result<(), GridError> {
+    fn gather_back(
+        &mut self,
+        grid: &[f64],
+        channels: usize,
+        out: &mut [f64],
+    ) -> Result<(), GridError> {
         let n = self.spec.len();
         out.fill(0.0);
         for (&node, &w) in self.pair_nodes.iter().zip(&self.pair_weights) {
@@ -377,7 +483,11 @@ impl Transfer {
             self.node_sum[node as usize] = 0.0;
         }
         match bad {
-            Some((index, value)) => Err(GridError::NonFinite { what: "grid value", index, value }),
+            Some((index, value)) => Err(GridError::NonFinite {
+                what: "grid value",
+                index,
+                value,
+            }),
             None => Ok(()),
         }
     }
@@ -399,7 +509,11 @@ impl Transfer {
         Self::check_values("particle value", values)?;
         let lost = self.gather(positions)?;
         self.scatter(values, channels, grid);
-        Ok(TransferStats { particles: positions.len(), lost, pairs: self.pair_nodes.len() })
+        Ok(TransferStats {
+            particles: positions.len(),
+            lost,
+            pairs: self.pair_nodes.len(),
+        })
     }
 
     /// Grid → particles with the configured method ([`Transfer::with_g2p`]); `out`
@@ -424,9 +538,15 @@ impl Transfer {
             (G2pMethod::Sph, NeighbourSearch::Exact) => {
                 let lost = self.gather(positions)?;
                 self.gather_back(grid, channels, out)?;
-                Ok(TransferStats { particles: positions.len(), lost, pairs: self.pair_nodes.len() })
+                Ok(TransferStats {
+                    particles: positions.len(),
+                    lost,
+                    pairs: self.pair_nodes.len(),
+                })
             }
-            (G2pMethod::Sph, NeighbourSearch::KdTree) => self.g2p_particle_tree(grid, channels, positions, out),
+            (G2pMethod::Sph, NeighbourSearch::KdTree) => {
+                self.g2p_particle_tree(grid, channels, positions, out)
+            }
         }
     }
 
@@ -445,7 +565,8 @@ impl Transfer {
         let n = self.spec.len();
         let k = self.prepared;
         self.particle_points.clear();
-        self.particle_points.extend(positions.iter().map(|p| [p.x, p.y]));
+        self.particle_points
+            .extend(positions.iter().map(|p| [p.x, p.y]));
         let tree = ImmutableKdTree::<f64, 2>::new_from_slice(&self.particle_points)
             .map_err(|e| GridError::KdTree(format!("{e:?}")))?;
         // Particles reached by at least one node, for the stats.
@@ -459,18 +580,25 @@ impl Transfer {
             for c in 0..channels {
                 let g = grid[c * n + node];
                 if !g.is_finite() {
-                    return Err(GridError::NonFinite { what: "grid value", index: c * n + node, value: g });
+                    return Err(GridError::NonFinite {
+                        what: "grid value",
+                        index: c * n + node,
+                        value: g,
+                    });
                 }
             }
             let q = self.spec.node_at(node);
             self.node_pairs.clear();
             let np = &mut self.node_pairs;
-            tree.query(&[q.x, q.y]).within::<SquaredEuclidean<f64>>(k.h2).unsorted().visit(|r| {
-                let w = k.weight(r.distance);
-                if w > 0.0 {
-                    np.push((r.item, w));
-                }
-            });
+            tree.query(&[q.x, q.y])
+                .within::<SquaredEuclidean<f64>>(k.h2)
+                .unsorted()
+                .visit(|r| {
+                    let w = k.weight(r.distance);
+                    if w > 0.0 {
+                        np.push((r.item, w));
+                    }
+                });
             let sum: f64 = self.node_pairs.iter().map(|&(_, w)| w).sum();
             if sum <= 0.0 {
                 continue;
@@ -486,7 +614,11 @@ impl Transfer {
             }
         }
         let lost = self.particle_sum.iter().filter(|&&s| s == 0.0).count();
-        Ok(TransferStats { particles: positions.len(), lost, pairs })
+        Ok(TransferStats {
+            particles: positions.len(),
+            lost,
+            pairs,
+        })
     }
 
     fn bilinear(
@@ -519,14 +651,22 @@ impl Transfer {
                 for &(node, w) in &corners {
                     let g = grid[c * n + node];
                     if !g.is_finite() {
-                        return Err(GridError::NonFinite { what: "grid value", index: c * n + node, value: g });
+                        return Err(GridError::NonFinite {
+                            what: "grid value",
+                            index: c * n + node,
+                            value: g,
+                        });
                     }
                     v += w * g;
                 }
                 out[p * channels + c] = v;
             }
         }
-        Ok(TransferStats { particles: positions.len(), lost: 0, pairs: 4 * positions.len() })
+        Ok(TransferStats {
+            particles: positions.len(),
+            lost: 0,
+            pairs: 4 * positions.len(),
+        })
     }
 
     /// Particles → grid → the same particles, in one pass over one list of pairs: what
@@ -567,7 +707,11 @@ impl Transfer {
         }
         self.round_grid = grid;
         back?;
-        Ok(TransferStats { particles: positions.len(), lost, pairs: self.pair_nodes.len() })
+        Ok(TransferStats {
+            particles: positions.len(),
+            lost,
+            pairs: self.pair_nodes.len(),
+        })
     }
 }
 
@@ -576,20 +720,45 @@ mod tests {
     use super::*;
 
     fn transfer(search: NeighbourSearch) -> Transfer {
-        Transfer::new(GridSpec::thesis(), Kernel::Poly6, 0.5).unwrap().with_search(search)
+        Transfer::new(GridSpec::thesis(), Kernel::Poly6, 0.5)
+            .unwrap()
+            .with_search(search)
     }
 
     fn points() -> Vec<Vector> {
-        (0..40).map(|i| Vector::new(0.37 * i as f64 % 15.0, (1.3 + 0.71 * i as f64) % 15.0)).collect()
+        (0..40)
+            .map(|i| Vector::new(0.37 * i as f64 % 15.0, (1.3 + 0.71 * i as f64) % 15.0))
+            .collect()
+    }
+
+    #[test]
+    fn integer_floor_and_ceil() {
+        for v in [-2.5, -2.0, -0.5, -0.0, 0.0, 0.3, 1.0, 1.7, 1e300, -1e300] {
+            assert_eq!(
+                floor_i(v),
+                v.floor().clamp(i64::MIN as f64, i64::MAX as f64) as i64,
+                "{v}"
+            );
+            assert_eq!(
+                ceil_i(v),
+                v.ceil().clamp(i64::MIN as f64, i64::MAX as f64) as i64,
+                "{v}"
+            );
+        }
     }
 
     #[test]
     fn kdtree_and_exact_agree() {
         let pos = points();
-        let vals: Vec<f64> = (0..pos.len() * 2).map(|i| (i as f64 * 0.37).sin()).collect();
+        let vals: Vec<f64> = (0..pos.len() * 2)
+            .map(|i| (i as f64 * 0.37).sin())
+            .collect();
         let n = GridSpec::thesis().len();
         let (mut ge, mut gk) = (vec![0.0; 2 * n], vec![0.0; 2 * n]);
-        let (mut e, mut k) = (transfer(NeighbourSearch::Exact), transfer(NeighbourSearch::KdTree));
+        let (mut e, mut k) = (
+            transfer(NeighbourSearch::Exact),
+            transfer(NeighbourSearch::KdTree),
+        );
         let se = e.particles_to_grid(&pos, &vals, 2, &mut ge).unwrap();
         let sk = k.particles_to_grid(&pos, &vals, 2, &mut gk).unwrap();
         assert_eq!(se, sk);
@@ -623,21 +792,39 @@ mod tests {
             t.particles_to_grid(&pos, &[1.0, 2.0], 1, &mut grid),
             Err(GridError::LengthMismatch { .. })
         ));
-        assert!(matches!(t.particles_to_grid(&pos, &[1.0], 1, &mut grid[1..]), Err(GridError::LengthMismatch { .. })));
+        assert!(matches!(
+            t.particles_to_grid(&pos, &[1.0], 1, &mut grid[1..]),
+            Err(GridError::LengthMismatch { .. })
+        ));
         assert!(matches!(
             t.particles_to_grid(&[Vector::new(f64::NAN, 1.0)], &[1.0], 1, &mut grid),
-            Err(GridError::NonFinite { what: "particle position", .. })
+            Err(GridError::NonFinite {
+                what: "particle position",
+                ..
+            })
         ));
         assert!(matches!(
             t.particles_to_grid(&pos, &[f64::INFINITY], 1, &mut grid),
-            Err(GridError::NonFinite { what: "particle value", .. })
+            Err(GridError::NonFinite {
+                what: "particle value",
+                ..
+            })
         ));
         grid[t.spec().index(4, 4)] = f64::NAN;
         let mut out = [0.0];
-        assert!(matches!(t.grid_to_particles(&grid, 1, &pos, &mut out), Err(GridError::NonFinite { .. })));
+        assert!(matches!(
+            t.grid_to_particles(&grid, 1, &pos, &mut out),
+            Err(GridError::NonFinite { .. })
+        ));
         let mut b = transfer(NeighbourSearch::Exact).with_g2p(G2pMethod::Bilinear);
-        assert!(b.grid_to_particles(&grid, 1, &[Vector::new(1.1, 1.1)], &mut out).is_err());
-        assert!(b.grid_to_particles(&grid, 1, &[Vector::new(5.1, 1.1)], &mut out).is_ok());
+        assert!(
+            b.grid_to_particles(&grid, 1, &[Vector::new(1.1, 1.1)], &mut out)
+                .is_err()
+        );
+        assert!(
+            b.grid_to_particles(&grid, 1, &[Vector::new(5.1, 1.1)], &mut out)
+                .is_ok()
+        );
         let mut k = transfer(NeighbourSearch::KdTree);
         assert!(k.grid_to_particles(&grid, 1, &pos, &mut out).is_err());
     }
@@ -647,16 +834,28 @@ mod tests {
         let mut t = transfer(NeighbourSearch::Exact);
         let mut grid = vec![0.0; t.spec().len()];
         let pos = [Vector::new(-1e300, 1e300), Vector::new(1.0, 1.0)];
-        let s = t.particles_to_grid(&pos, &[1.0, 1.0], 1, &mut grid).unwrap();
+        let s = t
+            .particles_to_grid(&pos, &[1.0, 1.0], 1, &mut grid)
+            .unwrap();
         assert_eq!(s.lost, 1);
         assert!((grid.iter().sum::<f64>() - 1.0).abs() < 1e-12);
         let mut out = [0.0; 2];
         let s = t.grid_to_particles(&grid, 1, &pos, &mut out).unwrap();
         assert_eq!((s.lost, out[0]), (1, 0.0));
         // Empty input is fine too.
-        assert_eq!(t.particles_to_grid(&[], &[], 1, &mut grid).unwrap().particles, 0);
+        assert_eq!(
+            t.particles_to_grid(&[], &[], 1, &mut grid)
+                .unwrap()
+                .particles,
+            0
+        );
         let mut k = transfer(NeighbourSearch::KdTree);
-        assert_eq!(k.grid_to_particles(&grid, 1, &[], &mut []).unwrap().particles, 0);
+        assert_eq!(
+            k.grid_to_particles(&grid, 1, &[], &mut [])
+                .unwrap()
+                .particles,
+            0
+        );
     }
 
     #[test]
@@ -665,9 +864,16 @@ mod tests {
         let small = GridSpec::new([0.0, 0.0], 0.5, 5, 4).unwrap();
         t.set_spec(small).unwrap();
         let mut grid = vec![0.0; small.len()];
-        t.particles_to_grid(&[Vector::new(1.0, 1.0)], &[3.0], 1, &mut grid).unwrap();
+        t.particles_to_grid(&[Vector::new(1.0, 1.0)], &[3.0], 1, &mut grid)
+            .unwrap();
         assert!((grid.iter().sum::<f64>() - 3.0).abs() < 1e-12);
-        assert!(t.set_spec(GridSpec { spacing: -1.0, ..small }).is_err());
+        assert!(
+            t.set_spec(GridSpec {
+                spacing: -1.0,
+                ..small
+            })
+            .is_err()
+        );
         assert_eq!(t.spec(), &small);
     }
 }

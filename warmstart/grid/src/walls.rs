@@ -10,7 +10,11 @@ use crate::spec::GridSpec;
 fn segment_distance(p: &Vector, a: &Vector, b: &Vector) -> f64 {
     let ab = b - a;
     let l2 = ab.norm_squared();
-    let t = if l2 > 0.0 { ((p - a).dot(&ab) / l2).clamp(0.0, 1.0) } else { 0.0 };
+    let t = if l2 > 0.0 {
+        ((p - a).dot(&ab) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     (p - (a + t * ab)).norm()
 }
 
@@ -36,10 +40,22 @@ fn world_vertices(body: &Body, out: &mut Vec<Vector>) {
     let world = |v: &Vector| origin + rotate(v, body.angle);
     match &body.shape_desc {
         ShapeDesc::Ball { .. } => out.push(origin),
-        ShapeDesc::Cuboid { half_width: w, half_height: h } => {
-            out.extend([Vector::new(-w, -h), Vector::new(*w, -h), Vector::new(*w, *h), Vector::new(-w, *h)].iter().map(world))
+        ShapeDesc::Cuboid {
+            half_width: w,
+            half_height: h,
+        } => out.extend(
+            [
+                Vector::new(-w, -h),
+                Vector::new(*w, -h),
+                Vector::new(*w, *h),
+                Vector::new(-w, *h),
+            ]
+            .iter()
+            .map(world),
+        ),
+        ShapeDesc::ConvexPolygon { vertices } | ShapeDesc::Polyline { vertices } => {
+            out.extend(vertices.iter().map(world))
         }
-        ShapeDesc::ConvexPolygon { vertices } | ShapeDesc::Polyline { vertices } => out.extend(vertices.iter().map(world)),
         ShapeDesc::Segment { a, b } => out.extend([world(a), world(b)]),
     }
 }
@@ -49,9 +65,10 @@ fn shape_distance(body: &Body, vertices: &[Vector], p: &Vector) -> f64 {
     match &body.shape_desc {
         ShapeDesc::Ball { radius } => ((p - vertices[0]).norm() - radius).max(0.0),
         ShapeDesc::Cuboid { .. } | ShapeDesc::ConvexPolygon { .. } => polygon_distance(p, vertices),
-        ShapeDesc::Segment { .. } | ShapeDesc::Polyline { .. } => {
-            vertices.windows(2).map(|w| segment_distance(p, &w[0], &w[1])).fold(f64::INFINITY, f64::min)
-        }
+        ShapeDesc::Segment { .. } | ShapeDesc::Polyline { .. } => vertices
+            .windows(2)
+            .map(|w| segment_distance(p, &w[0], &w[1]))
+            .fold(f64::INFINITY, f64::min),
     }
 }
 
@@ -98,11 +115,14 @@ pub fn wall_nodes(spec: &GridSpec, bodies: &[Body], band: f64, out: &mut Vec<u32
         let half = 0.5 * (hi - lo);
         // Square box around the shape's bounds, grown by the band.
         let r = half.x.max(half.y) + band;
-        let Some((ix0, ix1, iy0, iy1)) = spec.box_range(&centre, r) else { continue };
+        let Some((ix0, ix1, iy0, iy1)) = spec.box_range(&centre, r) else {
+            continue;
+        };
         for iy in iy0..=iy1 {
             for ix in ix0..=ix1 {
                 let p = spec.node(ix, iy);
-                if (p.x - centre.x).abs() > half.x + band || (p.y - centre.y).abs() > half.y + band {
+                if (p.x - centre.x).abs() > half.x + band || (p.y - centre.y).abs() > half.y + band
+                {
                     continue;
                 }
                 if shape_distance(b, &vertices, &p) <= band {
@@ -122,15 +142,18 @@ struct StaticSignature(Vec<(usize, Vector, f64, ShapeDesc)>);
 impl StaticSignature {
     /// Whether `bodies` has other static bodies than the snapshot; updates it if so.
     fn update(&mut self, bodies: &[Body]) -> bool {
-        let statics = bodies.iter().enumerate().filter(|(_, b)| b.kind == BodyKind::Static);
+        let statics = bodies
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| b.kind == BodyKind::Static);
         let same = statics.clone().count() == self.0.len()
-            && statics
-                .clone()
-                .zip(&self.0)
-                .all(|((i, b), (j, p, a, s))| i == *j && b.position == *p && b.angle == *a && b.shape_desc == *s);
+            && statics.clone().zip(&self.0).all(|((i, b), (j, p, a, s))| {
+                i == *j && b.position == *p && b.angle == *a && b.shape_desc == *s
+            });
         if !same {
             self.0.clear();
-            self.0.extend(statics.map(|(i, b)| (i, b.position, b.angle, b.shape_desc.clone())));
+            self.0
+                .extend(statics.map(|(i, b)| (i, b.position, b.angle, b.shape_desc.clone())));
         }
         !same
     }
@@ -194,7 +217,10 @@ mod tests {
 
     #[test]
     fn pile_walls_are_the_border_nodes() {
-        let world = scene::pile(0, 100).unwrap().build(WorldSettings::default()).unwrap();
+        let world = scene::pile(0, 100)
+            .unwrap()
+            .build(WorldSettings::default())
+            .unwrap();
         let spec = GridSpec::thesis();
         let mut nodes = Vec::new();
         wall_nodes(&spec, world.bodies(), 0.125, &mut nodes);
@@ -207,13 +233,22 @@ mod tests {
         assert_eq!((lo, hi), (Vector::zeros(), Vector::new(15.0, 15.0)));
         let mut cache = WallCache::new();
         assert_eq!(cache.nodes(&spec, world.bodies(), 0.125).len(), 240);
-        assert_eq!(cache.nodes(&spec, world.bodies(), 0.3).len(), 61 * 61 - 57 * 57);
+        assert_eq!(
+            cache.nodes(&spec, world.bodies(), 0.3).len(),
+            61 * 61 - 57 * 57
+        );
     }
 
     #[test]
     fn solid_and_round_statics() {
         let bodies = [
-            BodyDesc::fixed(ShapeDesc::Cuboid { half_width: 1.0, half_height: 0.5 }, Vector::new(2.0, 2.0)),
+            BodyDesc::fixed(
+                ShapeDesc::Cuboid {
+                    half_width: 1.0,
+                    half_height: 0.5,
+                },
+                Vector::new(2.0, 2.0),
+            ),
             BodyDesc::fixed(ShapeDesc::Ball { radius: 0.5 }, Vector::new(6.0, 6.0)),
             BodyDesc::dynamic(ShapeDesc::Ball { radius: 0.5 }, Vector::new(10.0, 10.0)),
         ];
