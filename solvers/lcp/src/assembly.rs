@@ -147,12 +147,20 @@ impl Delassus {
     /// choice. Fails on non-finite results or a forced dense assembly above
     /// [`MAX_DENSE_ROWS`]; never panics on a problem whose indices are in range, and reports
     /// out-of-range body indices as [`LcpError::InvalidProblem`].
-    pub fn assemble(&mut self, problem: &ContactProblem, mode: AssemblyMode, threshold: usize) -> Result<(), LcpError> {
+    pub fn assemble(
+        &mut self,
+        problem: &ContactProblem,
+        mode: AssemblyMode,
+        threshold: usize,
+    ) -> Result<(), LcpError> {
         let rows = 2 * problem.points.len();
         let nb = problem.bodies.len();
         let dense = mode.is_dense_for(rows, threshold);
         if dense && rows > MAX_DENSE_ROWS {
-            return Err(LcpError::TooLargeForDense { rows, limit: MAX_DENSE_ROWS });
+            return Err(LcpError::TooLargeForDense {
+                rows,
+                limit: MAX_DENSE_ROWS,
+            });
         }
         self.rows = rows;
         self.bodies = nb;
@@ -162,7 +170,8 @@ impl Delassus {
         self.v_free.clear();
         for b in &problem.bodies {
             self.inv_mass.push([b.inv_mass, b.inv_mass, b.inv_inertia]);
-            self.v_free.push([b.linear_velocity.x, b.linear_velocity.y, b.angular_velocity]);
+            self.v_free
+                .push([b.linear_velocity.x, b.linear_velocity.y, b.angular_velocity]);
         }
         self.jac.clear();
         self.q.clear();
@@ -170,15 +179,25 @@ impl Delassus {
         self.mu.clear();
         for (i, p) in problem.points.iter().enumerate() {
             if p.body_a as usize >= nb || p.body_b as usize >= nb {
-                return Err(LcpError::InvalidProblem(deepcontact_core::CoreError::InvalidProblem(format!(
-                    "point {i} has bad body indices"
-                ))));
+                return Err(LcpError::InvalidProblem(
+                    deepcontact_core::CoreError::InvalidProblem(format!(
+                        "point {i} has bad body indices"
+                    )),
+                ));
             }
             let n = p.normal;
             let t = p.tangent();
             let (a, b) = (p.body_a, p.body_b);
-            for (d, bias, mass) in [(n, p.velocity_bias, p.normal_mass), (t, 0.0, p.tangent_mass)] {
-                let row = JacRow { a, b, ja: [-d.x, -d.y, -cross(&p.r_a, &d)], jb: [d.x, d.y, cross(&p.r_b, &d)] };
+            for (d, bias, mass) in [
+                (n, p.velocity_bias, p.normal_mass),
+                (t, 0.0, p.tangent_mass),
+            ] {
+                let row = JacRow {
+                    a,
+                    b,
+                    ja: [-d.x, -d.y, -cross(&p.r_a, &d)],
+                    jb: [d.x, d.y, cross(&p.r_b, &d)],
+                };
                 let (va, vb) = (&self.v_free[a as usize], &self.v_free[b as usize]);
                 let jv = row.ja[0] * va[0]
                     + row.ja[1] * va[1]
@@ -192,25 +211,45 @@ impl Delassus {
             }
             self.mu.push(p.friction);
         }
-        if dense { self.assemble_dense() } else { self.assemble_sparse() }
+        if dense {
+            self.assemble_dense()
+        } else {
+            self.assemble_sparse()
+        }
         self.diag.clear();
         for i in 0..rows {
             let d = self.entry(i, i);
             self.diag.push(d);
         }
         if let Some(row) = self.q.iter().position(|v| !v.is_finite()) {
-            return Err(LcpError::NonFinite { what: "free velocity q", row, iteration: 0 });
+            return Err(LcpError::NonFinite {
+                what: "free velocity q",
+                row,
+                iteration: 0,
+            });
         }
         if let Some(row) = self.m_eff.iter().position(|v| !v.is_finite()) {
-            return Err(LcpError::NonFinite { what: "effective mass", row, iteration: 0 });
+            return Err(LcpError::NonFinite {
+                what: "effective mass",
+                row,
+                iteration: 0,
+            });
         }
         let bad = if self.dense {
             (0..rows).find(|&j| self.w_dense.col_as_slice(j).iter().any(|v| !v.is_finite()))
         } else {
-            (0..rows).find(|&j| self.values[self.col_ptr[j]..self.col_ptr[j + 1]].iter().any(|v| !v.is_finite()))
+            (0..rows).find(|&j| {
+                self.values[self.col_ptr[j]..self.col_ptr[j + 1]]
+                    .iter()
+                    .any(|v| !v.is_finite())
+            })
         };
         if let Some(row) = bad {
-            return Err(LcpError::NonFinite { what: "Delassus entry", row, iteration: 0 });
+            return Err(LcpError::NonFinite {
+                what: "Delassus entry",
+                row,
+                iteration: 0,
+            });
         }
         Ok(())
     }
@@ -305,7 +344,8 @@ impl Delassus {
                 if !movable(&m) {
                     continue;
                 }
-                for &code in &self.adj[self.adj_ptr[body as usize]..self.adj_ptr[body as usize + 1]] {
+                for &code in &self.adj[self.adj_ptr[body as usize]..self.adj_ptr[body as usize + 1]]
+                {
                     let (j, side_j) = ((code / 2) as usize, code % 2);
                     let (body_j, jn_j) = side_of(&self.jac[2 * j], side_j);
                     debug_assert_eq!(body_j, body);
@@ -354,7 +394,11 @@ impl Delassus {
 
     /// Stored entries of `W` (`rows²` when dense).
     pub fn nnz(&self) -> usize {
-        if self.dense { self.rows * self.rows } else { self.values.len() }
+        if self.dense {
+            self.rows * self.rows
+        } else {
+            self.values.len()
+        }
     }
 
     /// `q = J v_free − bias`, one per row.
@@ -391,7 +435,13 @@ impl Delassus {
 
     /// Symbolic structure of the sparse `W` (call only when sparse).
     pub(crate) fn sparse_symbolic(&self) -> SymbolicSparseColMatRef<'_, usize> {
-        SymbolicSparseColMatRef::new_checked(self.rows, self.rows, &self.col_ptr, None, &self.row_idx)
+        SymbolicSparseColMatRef::new_checked(
+            self.rows,
+            self.rows,
+            &self.col_ptr,
+            None,
+            &self.row_idx,
+        )
     }
 
     /// Stored entries of column `j` of the sparse `W`: `(row indices, values)`.
@@ -506,13 +556,24 @@ impl Delassus {
     /// in impulse units: the same definition as deepcontact-pgs's report (the change one
     /// Jacobi sweep would make).
     pub fn natural_residual(&self, lambda: &[Real], w: &[Real]) -> Real {
-        let mut res: Real = 0.0;
-        for i in 0..self.rows {
-            let normal = lambda[i & !1];
-            let r = lambda[i] - self.project_row(i, lambda[i] - self.m_eff[i] * w[i], normal);
-            res = res.max(r.abs());
+        self.natural_norms(lambda, w).0
+    }
+
+    /// `(max |H|, Σ H²)` of the natural map `H = λ − proj(λ − m ∘ w)`.
+    pub(crate) fn natural_norms(&self, lambda: &[Real], w: &[Real]) -> (Real, Real) {
+        let (mut inf, mut sq): (Real, Real) = (0.0, 0.0);
+        let pairs = lambda
+            .chunks_exact(2)
+            .zip(w.chunks_exact(2))
+            .zip(self.m_eff.chunks_exact(2));
+        for (((l, w), m), &mu) in pairs.zip(&self.mu) {
+            let hn = l[0] - (l[0] - m[0] * w[0]).max(0.0);
+            let bound = (mu * l[0]).max(0.0);
+            let ht = l[1] - (l[1] - m[1] * w[1]).max(-bound).min(bound);
+            inf = inf.max(hn.abs()).max(ht.abs());
+            sq += hn * hn + ht * ht;
         }
-        res
+        (inf, sq)
     }
 
     /// Body velocities `v = v_free + M⁻¹ Jᵀ λ`, one `(linear, angular)` per body.
@@ -579,7 +640,12 @@ pub(crate) fn sweep_order(problem: &ContactProblem, order: &mut Vec<u32>) {
 
 /// One projected Gauss-Seidel / SOR sweep on the assembled system in `order`, updating `x`
 /// in place: `x_i ← proj(x_i − ω m_i (Wx + q)_i)`. Returns `(max |Δ|, Σ Δ², all finite)`.
-pub(crate) fn sor_sweep(del: &Delassus, order: &[u32], x: &mut [Real], omega: Real) -> (Real, Real, bool) {
+pub(crate) fn sor_sweep(
+    del: &Delassus,
+    order: &[u32],
+    x: &mut [Real],
+    omega: Real,
+) -> (Real, Real, bool) {
     let mut max_d: Real = 0.0;
     let mut sum_sq: Real = 0.0;
     let mut finite = true;
@@ -594,4 +660,177 @@ pub(crate) fn sor_sweep(del: &Delassus, order: &[u32], x: &mut [Real], omega: Re
         sum_sq += d * d;
     }
     (max_d, sum_sq, finite)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use deepcontact_core::{ContactId, ProblemBody};
+
+    fn body(x: Real, y: Real, inv_mass: Real, inv_inertia: Real, v: Vector) -> ProblemBody {
+        ProblemBody {
+            world_index: u32::MAX,
+            position: Vector::new(x, y),
+            angle: 0.0,
+            linear_velocity: v,
+            angular_velocity: 0.5,
+            inv_mass,
+            inv_inertia,
+        }
+    }
+
+    /// A ball on the ground touching a second ball: two points sharing body 1.
+    fn two_points() -> ContactProblem {
+        let mut p = ContactProblem::new();
+        let g = p.add_body(body(0.0, -1.0, 0.0, 0.0, Vector::zeros()));
+        let a = p.add_body(body(0.0, 0.5, 1.0, 2.0, Vector::new(0.1, -1.0)));
+        let b = p.add_body(body(0.6, 1.3, 0.5, 1.5, Vector::new(-0.2, -1.0)));
+        let id = |f| ContactId {
+            body_a: 0,
+            body_b: 1,
+            feature_a: f,
+            feature_b: 0,
+        };
+        p.begin_manifold();
+        p.add_point(
+            id(1),
+            g,
+            a,
+            Vector::new(0.0, 0.0),
+            Vector::new(0.0, 1.0),
+            -0.01,
+            0.5,
+            0.0,
+            1.0,
+        );
+        p.begin_manifold();
+        let n = Vector::new(0.6, 0.8);
+        p.add_point(id(2), a, b, Vector::new(0.3, 0.9), n, -0.01, 0.3, 0.0, 1.0);
+        p
+    }
+
+    #[test]
+    #[allow(clippy::needless_range_loop)] // i and j are matrix indices
+    fn w_is_j_minv_jt_and_q_the_free_relative_velocity() {
+        let p = two_points();
+        for mode in [AssemblyMode::Dense, AssemblyMode::Sparse] {
+            let mut d = Delassus::new();
+            d.assemble(&p, mode, DEFAULT_DENSE_THRESHOLD).unwrap();
+            assert_eq!(d.is_dense(), mode == AssemblyMode::Dense);
+            assert_eq!((d.rows(), d.points()), (4, 2));
+            // Diagonal = inverse effective masses.
+            for (i, pt) in [(0, &p.points[0]), (2, &p.points[1])] {
+                assert!((d.diagonal()[i] * pt.normal_mass - 1.0).abs() < 1e-12);
+                assert!((d.diagonal()[i + 1] * pt.tangent_mass - 1.0).abs() < 1e-12);
+            }
+            // Applying a unit impulse on row j changes the relative velocity of row i by W_ij.
+            for j in 0..4 {
+                let mut x = [0.0; 4];
+                x[j] = 1.0;
+                let mut v = vec![(Vector::zeros(), 0.0); 3];
+                d.body_velocities(&x, &mut v);
+                let mut w = [0.0; 4];
+                d.velocity_of(&x, &mut w);
+                for i in 0..4 {
+                    let pt = &p.points[i / 2];
+                    let dir = if i % 2 == 0 { pt.normal } else { pt.tangent() };
+                    let rel = |v: &[(Vector, Real)]| {
+                        let (va, vb) = (v[pt.body_a as usize], v[pt.body_b as usize]);
+                        let dv = vb.0 + deepcontact_core::math::cross_sv(vb.1, &pt.r_b)
+                            - va.0
+                            - deepcontact_core::math::cross_sv(va.1, &pt.r_a);
+                        dv.dot(&dir)
+                    };
+                    let bias = if i % 2 == 0 { pt.velocity_bias } else { 0.0 };
+                    assert!(
+                        (rel(&v) - bias - w[i]).abs() < 1e-12,
+                        "{mode:?} row {i} col {j}"
+                    );
+                    assert!((d.entry(i, j) - d.entry(j, i)).abs() < 1e-15);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn points_on_disjoint_bodies_do_not_couple() {
+        let mut p = two_points();
+        // Make body 1 immovable: the two points now share no movable body.
+        p.bodies[1].inv_mass = 0.0;
+        p.bodies[1].inv_inertia = 0.0;
+        let mut d = Delassus::new();
+        d.assemble(&p, AssemblyMode::Sparse, 0).unwrap();
+        assert_eq!(d.entry(0, 2), 0.0);
+        assert_eq!(d.entry(1, 3), 0.0);
+        // Point 0 is between two immovable bodies: its block is stored, and zero.
+        assert_eq!(d.entry(0, 0), 0.0);
+        assert_eq!(d.nnz(), 8);
+    }
+
+    #[test]
+    fn forced_dense_assembly_of_a_huge_problem_is_an_error() {
+        let mut p = ContactProblem::new();
+        let ground = p.add_body(body(0.0, 0.0, 0.0, 0.0, Vector::zeros()));
+        let id = ContactId::default();
+        for k in 0..MAX_DENSE_ROWS / 2 + 1 {
+            let b = p.add_body(body(k as Real, 1.0, 1.0, 1.0, Vector::zeros()));
+            p.begin_manifold();
+            p.add_point(
+                id,
+                ground,
+                b,
+                Vector::new(k as Real, 0.5),
+                Vector::new(0.0, 1.0),
+                0.0,
+                0.5,
+                0.0,
+                1.0,
+            );
+        }
+        let mut d = Delassus::new();
+        assert!(matches!(
+            d.assemble(&p, AssemblyMode::Dense, 0),
+            Err(LcpError::TooLargeForDense { .. })
+        ));
+        d.assemble(&p, AssemblyMode::Auto, DEFAULT_DENSE_THRESHOLD)
+            .unwrap();
+        assert!(!d.is_dense());
+        assert_eq!(d.nnz(), 4 * p.points.len());
+    }
+
+    #[test]
+    fn projection_and_natural_residual() {
+        let p = two_points();
+        let mut d = Delassus::new();
+        d.assemble(&p, AssemblyMode::Dense, DEFAULT_DENSE_THRESHOLD)
+            .unwrap();
+        let mut x = [-1.0, 5.0, 2.0, -3.0];
+        d.project(&mut x);
+        assert_eq!(x, [0.0, 0.0, 2.0, -0.6]);
+        // Zero impulses with approaching contacts: the residual is m |w| of the normals.
+        let zero = [0.0; 4];
+        let mut w = [0.0; 4];
+        d.velocity_of(&zero, &mut w);
+        let expect = (0..4)
+            .step_by(2)
+            .map(|i| (d.effective_mass()[i] * w[i]).min(0.0).abs())
+            .fold(0.0, Real::max);
+        assert!((d.natural_residual(&zero, &w) - expect).abs() < 1e-15);
+    }
+
+    #[test]
+    fn sweep_order_is_pgs_order() {
+        let mut p = two_points();
+        let mut order = Vec::new();
+        sweep_order(&p, &mut order);
+        assert_eq!(order, [1, 0, 3, 2]);
+        // One manifold with both points: tangents first, then normals.
+        p.manifolds = vec![(0, 2)];
+        sweep_order(&p, &mut order);
+        assert_eq!(order, [1, 3, 0, 2]);
+        // A malformed manifold list falls back to point order.
+        p.manifolds = vec![(0, 1)];
+        sweep_order(&p, &mut order);
+        assert_eq!(order, [1, 0, 3, 2]);
+    }
 }

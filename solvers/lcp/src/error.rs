@@ -91,9 +91,28 @@ impl LcpError {
     pub fn into_core(self, solver: &str) -> CoreError {
         match self {
             LcpError::InvalidProblem(e) => e,
-            LcpError::SizeMismatch { what, expected, got } => CoreError::LengthMismatch { what, expected, got },
-            LcpError::InvalidSetting { name, value, reason } => CoreError::InvalidSetting { name, value, reason },
-            other => CoreError::Solver { solver: solver.to_string(), reason: other.to_string() },
+            LcpError::SizeMismatch {
+                what,
+                expected,
+                got,
+            } => CoreError::LengthMismatch {
+                what,
+                expected,
+                got,
+            },
+            LcpError::InvalidSetting {
+                name,
+                value,
+                reason,
+            } => CoreError::InvalidSetting {
+                name,
+                value,
+                reason,
+            },
+            other => CoreError::Solver {
+                solver: solver.to_string(),
+                reason: other.to_string(),
+            },
         }
     }
 }
@@ -101,5 +120,53 @@ impl LcpError {
 impl From<LcpError> for CoreError {
     fn from(e: LcpError) -> Self {
         e.into_core("lcp")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn conversion_into_core_errors_keeps_the_data() {
+        let e = LcpError::SizeMismatch {
+            what: "impulses",
+            expected: 3,
+            got: 2,
+        };
+        assert_eq!(
+            e.into_core("psor"),
+            CoreError::LengthMismatch {
+                what: "impulses",
+                expected: 3,
+                got: 2
+            }
+        );
+        let e = LcpError::InvalidSetting {
+            name: "omega",
+            value: 2.5,
+            reason: "must be in (0, 2)",
+        };
+        assert!(matches!(
+            CoreError::from(e),
+            CoreError::InvalidSetting { name: "omega", .. }
+        ));
+        let inner = CoreError::InvalidProblem("x".into());
+        assert_eq!(LcpError::from(inner.clone()).into_core("newton"), inner);
+        let e = LcpError::Singular {
+            rows: 6,
+            regularization: 100.0,
+            iteration: 3,
+        };
+        match e.into_core("newton") {
+            CoreError::Solver { solver, reason } => {
+                assert_eq!(solver, "newton");
+                assert!(
+                    reason.contains("6 rows") && reason.contains("iteration 3"),
+                    "{reason}"
+                );
+            }
+            other => panic!("{other:?}"),
+        }
     }
 }

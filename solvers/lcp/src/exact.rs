@@ -27,8 +27,12 @@ pub enum ContactState {
     SlidingPositive,
 }
 
-const STATES: [ContactState; 4] =
-    [ContactState::Separated, ContactState::Sticking, ContactState::SlidingNegative, ContactState::SlidingPositive];
+const STATES: [ContactState; 4] = [
+    ContactState::Separated,
+    ContactState::Sticking,
+    ContactState::SlidingNegative,
+    ContactState::SlidingPositive,
+];
 
 /// A solution found by [`solve_exact`].
 #[derive(Debug, Clone, PartialEq)]
@@ -70,7 +74,11 @@ pub fn violation(del: &Delassus, lambda: &[Real]) -> Violation {
     let n = del.rows();
     let mut v = Violation::default();
     if lambda.len() < n {
-        return Violation { normal: Real::INFINITY, cone: Real::INFINITY, friction: Real::INFINITY };
+        return Violation {
+            normal: Real::INFINITY,
+            cone: Real::INFINITY,
+            friction: Real::INFINITY,
+        };
     }
     let mut w = vec![0.0; n];
     del.velocity_of(lambda, &mut w);
@@ -108,10 +116,17 @@ pub fn solve_exact(problem: &ContactProblem, tolerance: Real) -> Result<ExactSol
     problem.validate()?;
     let np = problem.points.len();
     if np > EXACT_MAX_POINTS {
-        return Err(LcpError::TooManyPointsForExact { points: np, limit: EXACT_MAX_POINTS });
+        return Err(LcpError::TooManyPointsForExact {
+            points: np,
+            limit: EXACT_MAX_POINTS,
+        });
     }
     if !(tolerance.is_finite() && tolerance >= 0.0) {
-        return Err(LcpError::InvalidSetting { name: "tolerance", value: tolerance, reason: "must be finite and >= 0" });
+        return Err(LcpError::InvalidSetting {
+            name: "tolerance",
+            value: tolerance,
+            reason: "must be finite and >= 0",
+        });
     }
     let mut del = Delassus::new();
     del.assemble(problem, AssemblyMode::Dense, usize::MAX)?;
@@ -124,7 +139,9 @@ pub fn solve_exact(problem: &ContactProblem, tolerance: Real) -> Result<ExactSol
     let q = del.q();
     let mu = del.friction();
     let qmax = q.iter().fold(0.0, |m: Real, v| m.max(v.abs()));
-    let wmax = (0..n).flat_map(|i| (0..n).map(move |j| (i, j))).fold(0.0, |m: Real, (i, j)| m.max(w[(i, j)].abs()));
+    let wmax = (0..n)
+        .flat_map(|i| (0..n).map(move |j| (i, j)))
+        .fold(0.0, |m: Real, (i, j)| m.max(w[(i, j)].abs()));
 
     let mut states = vec![ContactState::Separated; np];
     let mut unknowns: Vec<usize> = Vec::with_capacity(n); // row index of each unknown
@@ -173,7 +190,14 @@ pub fn solve_exact(problem: &ContactProblem, tolerance: Real) -> Result<ExactSol
             b[ei] = -q[row];
         }
         let consistency_tol = 1e-9 * (1.0 + qmax);
-        if !gauss_full_pivot(&mut a[..k * k], &mut b[..k], &mut sol[..k], k, 1e-12 * wmax.max(1e-300), consistency_tol) {
+        if !gauss_full_pivot(
+            &mut a[..k * k],
+            &mut b[..k],
+            &mut sol[..k],
+            k,
+            1e-12 * wmax.max(1e-300),
+            consistency_tol,
+        ) {
             continue;
         }
         lambda.fill(0.0);
@@ -208,21 +232,33 @@ pub fn solve_exact(problem: &ContactProblem, tolerance: Real) -> Result<ExactSol
         });
         if admissible {
             return Ok(ExactSolution {
-                impulses: lambda.chunks_exact(2).map(|c| Impulse::new(c[0], c[1])).collect(),
+                impulses: lambda
+                    .chunks_exact(2)
+                    .map(|c| Impulse::new(c[0], c[1]))
+                    .collect(),
                 velocity: vel,
                 states,
                 active_sets_tried: code + 1,
             });
         }
     }
-    Err(LcpError::NoExactSolution { combinations: total })
+    Err(LcpError::NoExactSolution {
+        combinations: total,
+    })
 }
 
 /// Solves the `k × k` system `a x = b` (row-major `a`) by Gaussian elimination with full
 /// pivoting. Pivots below `pivot_tol` end the elimination; the unknowns without a pivot
 /// are set to 0 and the remaining equations must hold within `consistency_tol`.
 /// Returns false for an inconsistent system.
-fn gauss_full_pivot(a: &mut [Real], b: &mut [Real], x: &mut [Real], k: usize, pivot_tol: Real, consistency_tol: Real) -> bool {
+fn gauss_full_pivot(
+    a: &mut [Real],
+    b: &mut [Real],
+    x: &mut [Real],
+    k: usize,
+    pivot_tol: Real,
+    consistency_tol: Real,
+) -> bool {
     let mut col_of = [0usize; 2 * EXACT_MAX_POINTS];
     for (i, c) in col_of.iter_mut().enumerate().take(k) {
         *c = i;
@@ -300,12 +336,18 @@ mod tests {
         let mut b = [3.0, 5.0];
         let mut x = [0.0; 2];
         assert!(gauss_full_pivot(&mut a, &mut b, &mut x, 2, 1e-12, 1e-9));
-        assert!((x[0] - 0.8).abs() < 1e-12 && (x[1] - 1.4).abs() < 1e-12, "{x:?}");
+        assert!(
+            (x[0] - 0.8).abs() < 1e-12 && (x[1] - 1.4).abs() < 1e-12,
+            "{x:?}"
+        );
         // Rank 1, consistent: x0 + x1 = 2 twice -> basic solution.
         let mut a = [1.0, 1.0, 1.0, 1.0];
         let mut b = [2.0, 2.0];
         assert!(gauss_full_pivot(&mut a, &mut b, &mut x, 2, 1e-12, 1e-9));
-        assert!((x[0] + x[1] - 2.0).abs() < 1e-12 && (x[0] == 0.0 || x[1] == 0.0), "{x:?}");
+        assert!(
+            (x[0] + x[1] - 2.0).abs() < 1e-12 && (x[0] == 0.0 || x[1] == 0.0),
+            "{x:?}"
+        );
         // Rank 1, inconsistent.
         let mut a = [1.0, 1.0, 1.0, 1.0];
         let mut b = [2.0, 3.0];

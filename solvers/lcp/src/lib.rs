@@ -32,7 +32,10 @@ mod psor;
 
 pub use assembly::{AssemblyMode, DEFAULT_DENSE_THRESHOLD, Delassus, MAX_DENSE_ROWS};
 pub use error::LcpError;
-pub use exact::{ContactState, EXACT_MAX_POINTS, EXACT_REGULARIZATION, ExactSolution, Violation, solve_exact, violation};
+pub use exact::{
+    ContactState, EXACT_MAX_POINTS, EXACT_REGULARIZATION, ExactSolution, Violation, solve_exact,
+    violation,
+};
 pub use newton::{NewtonSettings, NewtonSolver, NewtonStats};
 pub use psor::{PsorSettings, PsorSolver};
 
@@ -40,12 +43,24 @@ use deepcontact_core::math::{Real, Vector};
 use deepcontact_core::{ContactProblem, Impulse};
 
 /// Checks the lengths of the impulse and velocity buffers against the problem.
-fn check_lengths(problem: &ContactProblem, impulses: &[Impulse], velocities: &[(Vector, Real)]) -> Result<(), LcpError> {
+fn check_lengths(
+    problem: &ContactProblem,
+    impulses: &[Impulse],
+    velocities: &[(Vector, Real)],
+) -> Result<(), LcpError> {
     if impulses.len() != problem.points.len() {
-        return Err(LcpError::SizeMismatch { what: "impulses", expected: problem.points.len(), got: impulses.len() });
+        return Err(LcpError::SizeMismatch {
+            what: "impulses",
+            expected: problem.points.len(),
+            got: impulses.len(),
+        });
     }
     if velocities.len() != problem.bodies.len() {
-        return Err(LcpError::SizeMismatch { what: "velocities", expected: problem.bodies.len(), got: velocities.len() });
+        return Err(LcpError::SizeMismatch {
+            what: "velocities",
+            expected: problem.bodies.len(),
+            got: velocities.len(),
+        });
     }
     Ok(())
 }

@@ -3,7 +3,9 @@
 use std::time::Instant;
 
 use deepcontact_core::math::{Real, Vector};
-use deepcontact_core::{ContactProblem, CoreError, Impulse, SolveReport, SolverSettings, VelocitySolver};
+use deepcontact_core::{
+    ContactProblem, CoreError, Impulse, SolveReport, SolverSettings, VelocitySolver,
+};
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::lu::partial_pivoting::{factor as dense_lu, solve as dense_solve};
 use faer::sparse::SparseColMatRef;
@@ -11,7 +13,8 @@ use faer::sparse::linalg::lu::{NumericLu, SymbolicLu, factorize_symbolic_lu};
 use faer::{Conj, Mat, MatMut, Par};
 
 use crate::assembly::{
-    AssemblyMode, DEFAULT_DENSE_THRESHOLD, Delassus, impulses_to_rows, rows_to_impulses, sor_sweep, sweep_order,
+    AssemblyMode, DEFAULT_DENSE_THRESHOLD, Delassus, impulses_to_rows, rows_to_impulses, sor_sweep,
+    sweep_order,
 };
 use crate::{LcpError, check_lengths};
 
@@ -74,7 +77,15 @@ impl NewtonSettings {
     /// Rejects out-of-range values.
     pub fn validate(&self) -> Result<(), LcpError> {
         let check = |name, value: Real, ok: bool, reason| {
-            if ok { Ok(()) } else { Err(LcpError::InvalidSetting { name, value, reason }) }
+            if ok {
+                Ok(())
+            } else {
+                Err(LcpError::InvalidSetting {
+                    name,
+                    value,
+                    reason,
+                })
+            }
         };
         check(
             "regularization",
@@ -88,8 +99,18 @@ impl NewtonSettings {
             self.max_regularization.is_finite() && self.max_regularization >= self.regularization,
             "must be finite and >= regularization",
         )?;
-        check("armijo", self.armijo, self.armijo > 0.0 && self.armijo < 0.5, "must be in (0, 0.5)")?;
-        check("backtrack", self.backtrack, self.backtrack > 0.0 && self.backtrack < 1.0, "must be in (0, 1)")
+        check(
+            "armijo",
+            self.armijo,
+            self.armijo > 0.0 && self.armijo < 0.5,
+            "must be in (0, 0.5)",
+        )?;
+        check(
+            "backtrack",
+            self.backtrack,
+            self.backtrack > 0.0 && self.backtrack < 1.0,
+            "must be in (0, 1)",
+        )
     }
 }
 
@@ -140,7 +161,10 @@ impl Scratch {
         if !MemStack::new(&mut self.0).can_hold(req) {
             self.0 = MemBuffer::try_new(req).map_err(|_| LcpError::Factorization {
                 rows: 0,
-                reason: format!("cannot allocate {} bytes of scratch", req.unaligned_bytes_required()),
+                reason: format!(
+                    "cannot allocate {} bytes of scratch",
+                    req.unaligned_bytes_required()
+                ),
             })?;
         }
         Ok(())
@@ -153,23 +177,33 @@ impl Scratch {
 /// With `w = Wλ + q` and `m` the effective masses, the natural map
 /// `H(λ) = λ − proj(λ − m ∘ w)` (normal rows projected onto `[0, ∞)`, tangent rows onto
 /// `[−μλn, μλn]` with the *current* `λn`) vanishes exactly at the solutions;
-/// `max |H|` is the natural-map residual deepcontact-pgs reports. Each iteration:
+/// `max |H|` is the natural-map residual deepcontact-pgs reports. The start is projected onto
+/// the cone, then each iteration:
 ///
 /// 1. classifies every row (free, at a constant bound, or at a friction bound `±μλn`);
 /// 2. solves the generalised-Jacobian system `K Δ = −H` of all rows at once — free rows
-///    take the row of `W` (plus the regularisation ε), bound rows an identity row, friction
-///    bound rows also the `∓μ` coupling to their normal (so sliding friction follows the
-///    normal impulse within the step, which makes the method a true Newton method for `H`
-///    rather than a fixed point on the friction bounds) — with faer's partial-pivoting LU,
-///    dense or sparse (the sparse symbolic analysis is done once per solve: `K` keeps the
-///    pattern of `W`); ε grows ×100 when the solution is not finite or inaccurate;
-/// 3. backtracks `λ ← proj(λ + αΔ)` from α = 1 until `θ = ½‖H‖²` decreases by the Armijo
-///    rule; if it does not within [`NewtonSettings::max_backtracks`] steps, the iteration
-///    is one projected Gauss-Seidel sweep instead (so the method never stalls).
+///    take the row of `W` (diagonal × (1 + ε)), bound rows an identity row, friction-bound
+///    rows also the `∓μ` coupling to their normal (so sliding friction follows the normal
+///    impulse within the step: a true Newton step for `H`, not a fixed point on the friction
+///    bounds) — with faer's partial-pivoting LU, dense or sparse (the sparse symbolic
+///    analysis is done once per solve: `K` keeps the pattern of `W`); ε grows ×100 while the
+///    solution is not finite or inaccurate;
+/// 3. line search on `θ = ½‖H‖²` along `λ ← proj(λ + αΔ)` (Armijo): α = 1, β, β², …, then
+///    the first breakpoint where a normal impulse reaches zero;
+/// 4. if no step is accepted: the same with the friction bounds lagged (no coupling, the
+///    symmetric system of a fixed point on the bounds), then with ε × 100 (a shorter
+///    Levenberg–Marquardt step), and at the largest ε one projected Gauss-Seidel sweep
+///    instead (so an iteration always moves). ε shrinks ×10 after every accepted step.
 ///
-/// Each iteration records `max |Δλ|` and `sqrt(Σ Δλ²)` of the change it made (the first
-/// one measured from the start as given, before projection), so the stop rule of
-/// [`SolverSettings`] and every figure work as for PGS.
+/// The iteration records `max |Δλ|` and `sqrt(Σ Δλ²)` of the change it made (the first one
+/// measured from the start as given), so the stop rule of [`SolverSettings`] and every figure
+/// work as for PGS; since a short line-search step can be small far from a solution, the solve
+/// stops only when the natural map is below the tolerance too. The returned impulses are on the
+/// friction cone and the velocities are `v_free + M⁻¹ Jᵀ λ`.
+///
+/// Limits: the frictional problem is not monotone; on contrived problems (several sliding
+/// contacts with nearly coincident points on one body, mass ratios of 1e4) the method may
+/// hit the cap with a small but non-zero residual instead of converging (see the tests).
 #[derive(Debug)]
 pub struct NewtonSolver {
     /// Options.
@@ -265,22 +299,37 @@ impl NewtonSolver {
             problem.validate()?;
         }
         check_lengths(problem, impulses, velocities)?;
-        self.delassus.assemble(problem, self.settings.assembly, self.settings.dense_threshold)?;
+        self.delassus.assemble(
+            problem,
+            self.settings.assembly,
+            self.settings.dense_threshold,
+        )?;
         sweep_order(problem, &mut self.order);
         let n = self.delassus.rows();
-        self.stats = NewtonStats { dense: self.delassus.is_dense(), ..NewtonStats::default() };
+        self.stats = NewtonStats {
+            dense: self.delassus.is_dense(),
+            ..NewtonStats::default()
+        };
         self.prepare(n)?;
 
         impulses_to_rows(impulses, &mut self.prev);
         if let Some(row) = self.prev.iter().position(|v| !v.is_finite()) {
-            return Err(LcpError::NonFinite { what: "start impulse", row, iteration: 0 });
+            return Err(LcpError::NonFinite {
+                what: "start impulse",
+                row,
+                iteration: 0,
+            });
         }
         self.x.clear();
         self.x.extend_from_slice(&self.prev);
         self.delassus.project(&mut self.x);
         self.delassus.velocity_of(&self.x, &mut self.w);
 
-        let scale = self.delassus.diagonal().iter().fold(0.0, |m: Real, &v| m.max(v));
+        let scale = self
+            .delassus
+            .diagonal()
+            .iter()
+            .fold(0.0, |m: Real, &v| m.max(v));
         let scale = if scale > 0.0 { scale } else { 1.0 };
         let base = self.settings.regularization;
         let max_reg = self.settings.max_regularization;
@@ -298,11 +347,9 @@ impl NewtonSolver {
                         self.coupled = coupled;
                         reg = self.newton_direction(it, reg, scale)?;
                         let ls = self.line_search(theta);
-                        if let Some(alpha) = ls {
+                        if ls.is_some() {
                             accepted = true;
-                            if alpha == 1.0 {
-                                reg = (reg * 0.1).max(base);
-                            }
+                            reg = (reg * 0.1).max(base);
                             break 'attempts;
                         }
                     }
@@ -316,10 +363,15 @@ impl NewtonSolver {
                 if !accepted {
                     self.stats.fallback_sweeps += 1;
                     self.trial.copy_from_slice(&self.x);
-                    let (_, _, finite) = sor_sweep(&self.delassus, &self.order, &mut self.trial, 1.0);
+                    let (_, _, finite) =
+                        sor_sweep(&self.delassus, &self.order, &mut self.trial, 1.0);
                     if !finite {
                         let row = self.trial.iter().position(|v| !v.is_finite()).unwrap_or(0);
-                        return Err(LcpError::NonFinite { what: "impulse", row, iteration: it });
+                        return Err(LcpError::NonFinite {
+                            what: "impulse",
+                            row,
+                            iteration: it,
+                        });
                     }
                     self.delassus.velocity_of(&self.trial, &mut self.w_trial);
                 }
@@ -339,7 +391,11 @@ impl NewtonSolver {
             report.residual_l2.push(l2);
             if !(max_d.is_finite() && l2.is_finite()) {
                 let row = self.x.iter().position(|v| !v.is_finite()).unwrap_or(0);
-                return Err(LcpError::NonFinite { what: "impulse", row, iteration: it });
+                return Err(LcpError::NonFinite {
+                    what: "impulse",
+                    row,
+                    iteration: it,
+                });
             }
             // A Newton iteration can make a tiny change without being converged (a short
             // line-search step): the natural map must be small too.
@@ -364,8 +420,15 @@ impl NewtonSolver {
 
     /// Sizes the buffers, runs the sparse symbolic analysis and reserves faer's scratch.
     fn prepare(&mut self, n: usize) -> Result<(), LcpError> {
-        for v in [&mut self.w, &mut self.h, &mut self.rhs, &mut self.d, &mut self.kd, &mut self.trial, &mut self.w_trial]
-        {
+        for v in [
+            &mut self.w,
+            &mut self.h,
+            &mut self.rhs,
+            &mut self.d,
+            &mut self.kd,
+            &mut self.trial,
+            &mut self.w_trial,
+        ] {
             v.clear();
             v.resize(n, 0.0);
         }
@@ -376,11 +439,16 @@ impl NewtonSolver {
             self.k_dense.resize_with(n, n, |_, _| 0.0);
             self.perm.resize(n, 0);
             self.perm_inv.resize(n, 0);
-            dense_lu::lu_in_place_scratch::<usize, Real>(n, n, Par::Seq, Default::default())
-                .or(dense_solve::solve_in_place_scratch::<usize, Real>(n, 1, Par::Seq))
+            dense_lu::lu_in_place_scratch::<usize, Real>(n, n, Par::Seq, Default::default()).or(
+                dense_solve::solve_in_place_scratch::<usize, Real>(n, 1, Par::Seq),
+            )
         } else {
-            let symbolic = factorize_symbolic_lu(self.delassus.sparse_symbolic(), Default::default())
-                .map_err(|e| LcpError::Factorization { rows: n, reason: format!("{e:?}") })?;
+            let symbolic =
+                factorize_symbolic_lu(self.delassus.sparse_symbolic(), Default::default())
+                    .map_err(|e| LcpError::Factorization {
+                        rows: n,
+                        reason: format!("{e:?}"),
+                    })?;
             let req = symbolic
                 .factorize_numeric_lu_scratch::<Real>(Par::Seq, Default::default())
                 .or(symbolic.solve_in_place_scratch::<Real>(1, Par::Seq));
@@ -394,6 +462,7 @@ impl NewtonSolver {
 
     /// Classifies the rows at the current iterate, fills `h = H(x)` and the Newton
     /// right-hand side, and returns `θ = ½‖H‖²`.
+    #[allow(clippy::needless_range_loop)] // rows 2p and 2p + 1 of several arrays
     fn classify(&mut self) -> Real {
         let del = &self.delassus;
         let (m, mu) = (del.effective_mass(), del.friction());
@@ -433,20 +502,35 @@ impl NewtonSolver {
 
     /// Solves `K d = rhs` into `self.d` with relative regularisation `reg`, growing it
     /// until the solution is finite and accurate; returns the regularisation used.
-    fn newton_direction(&mut self, iteration: u32, mut reg: Real, scale: Real) -> Result<Real, LcpError> {
+    fn newton_direction(
+        &mut self,
+        iteration: u32,
+        mut reg: Real,
+        scale: Real,
+    ) -> Result<Real, LcpError> {
         let n = self.delassus.rows();
         loop {
             self.stats.factorizations += 1;
             self.stats.max_regularization = self.stats.max_regularization.max(reg);
             self.d.copy_from_slice(&self.rhs);
-            let factored = if self.delassus.is_dense() { self.solve_dense(reg, scale) } else { self.solve_sparse(reg, scale) };
+            let factored = if self.delassus.is_dense() {
+                self.solve_dense(reg, scale)
+            } else {
+                self.solve_sparse(reg, scale)
+            };
             if factored && self.step_is_accurate(reg, scale) {
                 return Ok(reg);
             }
             if reg >= self.settings.max_regularization {
-                return Err(LcpError::Singular { rows: n, regularization: reg, iteration });
+                return Err(LcpError::Singular {
+                    rows: n,
+                    regularization: reg,
+                    iteration,
+                });
             }
-            reg = (reg * 100.0).max(1e-12).min(self.settings.max_regularization);
+            reg = (reg * 100.0)
+                .max(1e-12)
+                .min(self.settings.max_regularization);
         }
     }
 
@@ -477,7 +561,9 @@ impl NewtonSolver {
     /// Dense LU of `K` (faer, partial pivoting, in place in a reused buffer).
     fn solve_dense(&mut self, reg: Real, scale: Real) -> bool {
         let n = self.delassus.rows();
-        let Some(w) = self.delassus.dense() else { return false };
+        let Some(w) = self.delassus.dense() else {
+            return false;
+        };
         self.k_dense.as_mut().copy_from(w);
         for r in 0..n {
             if self.state[r] == RowState::Free {
@@ -499,34 +585,59 @@ impl NewtonSolver {
             Default::default(),
         );
         let lu = self.k_dense.as_ref();
-        dense_solve::solve_in_place(lu, lu, perm, MatMut::from_column_major_slice_mut(&mut self.d, n, 1), Par::Seq, stack);
+        dense_solve::solve_in_place(
+            lu,
+            lu,
+            perm,
+            MatMut::from_column_major_slice_mut(&mut self.d, n, 1),
+            Par::Seq,
+            stack,
+        );
         true
     }
 
     /// Sparse LU of `K` (faer, same pattern as `W`; symbolic analysis done in `prepare`).
     fn solve_sparse(&mut self, reg: Real, scale: Real) -> bool {
         let n = self.delassus.rows();
-        let Some(w) = self.delassus.sparse() else { return false };
+        let Some(w) = self.delassus.sparse() else {
+            return false;
+        };
         for c in 0..n {
             let (s, e) = (w.symbolic().col_ptr()[c], w.symbolic().col_ptr()[c + 1]);
             for k in s..e {
                 let r = w.symbolic().row_idx()[k];
                 let v = if self.state[r] == RowState::Free {
-                    if r == c { Self::regularized(w.val()[k], reg, scale) } else { w.val()[k] }
+                    if r == c {
+                        Self::regularized(w.val()[k], reg, scale)
+                    } else {
+                        w.val()[k]
+                    }
                 } else {
                     self.bound_row_entry(r, c)
                 };
                 self.k_values[k] = v;
             }
         }
-        let Some(symbolic) = self.symbolic.as_ref() else { return false };
-        let k = SparseColMatRef::new(self.delassus.sparse_symbolic(), &self.k_values);
-        let stack = MemStack::new(&mut self.mem.0);
-        let Ok(lu) = symbolic.factorize_numeric_lu(&mut self.numeric, k, Par::Seq, &mut *stack, Default::default())
-        else {
+        let Some(symbolic) = self.symbolic.as_ref() else {
             return false;
         };
-        lu.solve_in_place_with_conj(Conj::No, MatMut::from_column_major_slice_mut(&mut self.d, n, 1), Par::Seq, stack);
+        let k = SparseColMatRef::new(self.delassus.sparse_symbolic(), &self.k_values);
+        let stack = MemStack::new(&mut self.mem.0);
+        let Ok(lu) = symbolic.factorize_numeric_lu(
+            &mut self.numeric,
+            k,
+            Par::Seq,
+            &mut *stack,
+            Default::default(),
+        ) else {
+            return false;
+        };
+        lu.solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(&mut self.d, n, 1),
+            Par::Seq,
+            stack,
+        );
         true
     }
 
@@ -560,12 +671,12 @@ impl NewtonSolver {
     }
 
     /// Projected backtracking line search along `d`; leaves the accepted point in `trial`
-    /// and its velocities in `w_trial`. Returns false when no step was accepted.
+    /// and its velocities in `w_trial`. Returns the accepted step, or `None`.
     ///
-    /// Tries α = 1, β, β², … and finally the first breakpoint, the largest α at which no
-    /// normal impulse has crossed zero yet: near-redundant contacts give Newton steps that
-    /// are long along a nearly singular direction of `W`, and it is the first contact
-    /// leaving (λn reaching 0) that makes progress.
+    /// Tries α = 1, β, β², … and then the first breakpoint (the largest α at which no
+    /// normal impulse has crossed zero yet) when it is shorter: near-redundant contacts give
+    /// Newton steps that are long along a nearly singular direction of `W`, and it is the
+    /// first contact leaving (λn reaching 0) that makes progress there.
     fn line_search(&mut self, theta: Real) -> Option<Real> {
         let (sigma, beta) = (self.settings.armijo, self.settings.backtrack);
         let mut alpha = 1.0;
@@ -584,7 +695,7 @@ impl NewtonSolver {
             .step_by(2)
             .filter(|&(&x, &d)| x > 0.0 && d < 0.0 && x > MIN_BREAKPOINT * -d)
             .fold(Real::INFINITY, |m: Real, (&x, &d)| m.min(x / -d));
-        (breakpoint < alpha / beta && breakpoint > 0.0 && self.try_step(breakpoint, theta, sigma)).then_some(breakpoint)
+        (breakpoint < alpha / beta && self.try_step(breakpoint, theta, sigma)).then_some(breakpoint)
     }
 
     /// Evaluates `proj(x + αd)` into `trial` / `w_trial`; true if it passes the Armijo test.
@@ -600,29 +711,13 @@ impl NewtonSolver {
 
     /// `(max |H|, ‖H‖₂)` at the current iterate.
     fn natural_norms(&self) -> (Real, Real) {
-        let del = &self.delassus;
-        let m = del.effective_mass();
-        let (mut inf, mut sq): (Real, Real) = (0.0, 0.0);
-        for i in 0..del.rows() {
-            let x = self.x[i];
-            let h = x - del.project_row(i, x - m[i] * self.w[i], self.x[i & !1]);
-            inf = inf.max(h.abs());
-            sq += h * h;
-        }
+        let (inf, sq) = self.delassus.natural_norms(&self.x, &self.w);
         (inf, sq.sqrt())
     }
 
     /// `½‖H‖²` at `trial` (with `w_trial`).
     fn merit(&self) -> Real {
-        let del = &self.delassus;
-        let m = del.effective_mass();
-        let mut theta = 0.0;
-        for i in 0..del.rows() {
-            let x = self.trial[i];
-            let h = x - del.project_row(i, x - m[i] * self.w_trial[i], self.trial[i & !1]);
-            theta += h * h;
-        }
-        0.5 * theta
+        0.5 * self.delassus.natural_norms(&self.trial, &self.w_trial).1
     }
 }
 
@@ -639,6 +734,7 @@ impl VelocitySolver for NewtonSolver {
         velocities: &mut [(Vector, Real)],
         report: &mut SolveReport,
     ) -> Result<(), CoreError> {
-        self.solve_lcp(problem, settings, impulses, velocities, report).map_err(|e| e.into_core("newton"))
+        self.solve_lcp(problem, settings, impulses, velocities, report)
+            .map_err(|e| e.into_core("newton"))
     }
 }

@@ -3,10 +3,13 @@
 use std::time::Instant;
 
 use deepcontact_core::math::{Real, Vector};
-use deepcontact_core::{ContactProblem, CoreError, Impulse, SolveReport, SolverSettings, VelocitySolver};
+use deepcontact_core::{
+    ContactProblem, CoreError, Impulse, SolveReport, SolverSettings, VelocitySolver,
+};
 
 use crate::assembly::{
-    AssemblyMode, DEFAULT_DENSE_THRESHOLD, Delassus, impulses_to_rows, rows_to_impulses, sor_sweep, sweep_order,
+    AssemblyMode, DEFAULT_DENSE_THRESHOLD, Delassus, impulses_to_rows, rows_to_impulses, sor_sweep,
+    sweep_order,
 };
 use crate::{LcpError, check_lengths};
 
@@ -27,7 +30,12 @@ pub struct PsorSettings {
 
 impl Default for PsorSettings {
     fn default() -> Self {
-        Self { omega: 1.0, assembly: AssemblyMode::Auto, dense_threshold: DEFAULT_DENSE_THRESHOLD, validate: true }
+        Self {
+            omega: 1.0,
+            assembly: AssemblyMode::Auto,
+            dense_threshold: DEFAULT_DENSE_THRESHOLD,
+            validate: true,
+        }
     }
 }
 
@@ -35,7 +43,11 @@ impl PsorSettings {
     /// Rejects ω outside (0, 2) or non-finite.
     pub fn validate(&self) -> Result<(), LcpError> {
         if !(self.omega > 0.0 && self.omega < 2.0) {
-            return Err(LcpError::InvalidSetting { name: "omega", value: self.omega, reason: "must be in (0, 2)" });
+            return Err(LcpError::InvalidSetting {
+                name: "omega",
+                value: self.omega,
+                reason: "must be in (0, 2)",
+            });
         }
         Ok(())
     }
@@ -68,7 +80,10 @@ impl PsorSolver {
 
     /// A solver with the given options.
     pub fn with_settings(settings: PsorSettings) -> Self {
-        Self { settings, ..Self::default() }
+        Self {
+            settings,
+            ..Self::default()
+        }
     }
 
     /// The system assembled by the last solve.
@@ -93,19 +108,32 @@ impl PsorSolver {
             problem.validate()?;
         }
         check_lengths(problem, impulses, velocities)?;
-        self.delassus.assemble(problem, self.settings.assembly, self.settings.dense_threshold)?;
+        self.delassus.assemble(
+            problem,
+            self.settings.assembly,
+            self.settings.dense_threshold,
+        )?;
         sweep_order(problem, &mut self.order);
         impulses_to_rows(impulses, &mut self.x);
         let mut it = 0;
         while it < settings.max_iterations {
-            let (max_d, sum_sq, finite) = sor_sweep(&self.delassus, &self.order, &mut self.x, self.settings.omega);
+            let (max_d, sum_sq, finite) = sor_sweep(
+                &self.delassus,
+                &self.order,
+                &mut self.x,
+                self.settings.omega,
+            );
             it += 1;
             let l2 = sum_sq.sqrt();
             report.residual_inf.push(max_d);
             report.residual_l2.push(l2);
             if !(finite && max_d.is_finite()) {
                 let row = self.x.iter().position(|v| !v.is_finite()).unwrap_or(0);
-                return Err(LcpError::NonFinite { what: "impulse", row, iteration: it });
+                return Err(LcpError::NonFinite {
+                    what: "impulse",
+                    row,
+                    iteration: it,
+                });
             }
             if settings.converged(it, max_d, l2) {
                 report.converged = true;
@@ -140,6 +168,7 @@ impl VelocitySolver for PsorSolver {
         velocities: &mut [(Vector, Real)],
         report: &mut SolveReport,
     ) -> Result<(), CoreError> {
-        self.solve_lcp(problem, settings, impulses, velocities, report).map_err(|e| e.into_core("psor"))
+        self.solve_lcp(problem, settings, impulses, velocities, report)
+            .map_err(|e| e.into_core("psor"))
     }
 }

@@ -7,18 +7,24 @@ use common::{Kind, random_problem, rows, run, scale};
 use deepcontact_core::math::Real;
 use deepcontact_core::{Impulse, SolverSettings};
 use deepcontact_lcp::{
-    AssemblyMode, Delassus, NewtonSettings, NewtonSolver, PsorSettings, PsorSolver, solve_exact, violation,
+    AssemblyMode, Delassus, NewtonSettings, NewtonSolver, PsorSettings, PsorSolver, solve_exact,
+    violation,
 };
 
 const SEEDS: u64 = 40;
 
 fn tight(max_iterations: u32) -> SolverSettings {
-    SolverSettings { max_iterations, tolerance: 1e-12, ..SolverSettings::default() }
+    SolverSettings {
+        max_iterations,
+        tolerance: 1e-12,
+        ..SolverSettings::default()
+    }
 }
 
 fn assembled(problem: &deepcontact_core::ContactProblem) -> Delassus {
     let mut d = Delassus::new();
-    d.assemble(problem, AssemblyMode::Dense, usize::MAX).unwrap();
+    d.assemble(problem, AssemblyMode::Dense, usize::MAX)
+        .unwrap();
     d
 }
 
@@ -34,11 +40,15 @@ fn exact_solutions_are_complementary_and_in_the_cone() {
     for kind in [Kind::Well, Kind::Bad, Kind::Redundant] {
         for seed in 0..SEEDS {
             let p = random_problem(seed, kind);
-            let exact = solve_exact(&p, 1e-9).unwrap_or_else(|e| panic!("{kind:?} seed {seed}: {e}"));
+            let exact =
+                solve_exact(&p, 1e-9).unwrap_or_else(|e| panic!("{kind:?} seed {seed}: {e}"));
             let d = assembled(&p);
             let v = violation(&d, &rows(&exact.impulses));
             let tol = 1e-7 * scale(&exact.impulses) * p.points.len() as Real;
-            assert!(v.max() < tol, "{kind:?} seed {seed}: exact solution violates {v:?}");
+            assert!(
+                v.max() < tol,
+                "{kind:?} seed {seed}: exact solution violates {v:?}"
+            );
         }
     }
 }
@@ -53,10 +63,16 @@ fn exact_solver_rejects_large_and_invalid_problems() {
         let n = p.points.len() as u32;
         *p.manifolds.last_mut().unwrap() = (n - 1, n);
     }
-    assert!(matches!(solve_exact(&p, 1e-9), Err(deepcontact_lcp::LcpError::TooManyPointsForExact { .. })));
+    assert!(matches!(
+        solve_exact(&p, 1e-9),
+        Err(deepcontact_lcp::LcpError::TooManyPointsForExact { .. })
+    ));
     let mut p = random_problem(2, Kind::Well);
     p.points[0].friction = Real::NAN;
-    assert!(matches!(solve_exact(&p, 1e-9), Err(deepcontact_lcp::LcpError::InvalidProblem(_))));
+    assert!(matches!(
+        solve_exact(&p, 1e-9),
+        Err(deepcontact_lcp::LcpError::InvalidProblem(_))
+    ));
 }
 
 /// Newton (dense and sparse) reaches a solution of every problem; where the velocities of
@@ -70,22 +86,38 @@ fn newton_matches_the_exact_solver() {
             let d = assembled(&p);
             let s = scale(&exact.impulses) * p.points.len() as Real;
             for assembly in [AssemblyMode::Dense, AssemblyMode::Sparse] {
-                let mut newton = NewtonSolver::with_settings(NewtonSettings { assembly, ..NewtonSettings::default() });
+                let mut newton = NewtonSolver::with_settings(NewtonSettings {
+                    assembly,
+                    ..NewtonSettings::default()
+                });
                 let zeros = vec![Impulse::ZERO; p.points.len()];
                 let (imp, _, report) = run(&mut newton, &p, &tight(200), &zeros);
-                let ctx = format!("{kind:?} seed {seed} {assembly:?}: {report:?} {:?}", newton.last_stats());
+                let ctx = format!(
+                    "{kind:?} seed {seed} {assembly:?}: {report:?} {:?}",
+                    newton.last_stats()
+                );
                 assert!(report.converged, "{ctx}");
                 let v = violation(&d, &rows(&imp));
                 assert!(v.max() < 1e-8 * s, "{ctx}: violation {v:?}");
                 assert!(report.natural_residual < 1e-8 * s, "{ctx}");
                 // Normal velocities of touching points agree with the oracle.
                 let (w, we) = (velocities(&d, &imp), &exact.velocity);
-                let dv = w.iter().zip(we).fold(0.0, |m: Real, (a, b)| m.max((a - b).abs()));
+                let dv = w
+                    .iter()
+                    .zip(we)
+                    .fold(0.0, |m: Real, (a, b)| m.max((a - b).abs()));
                 let vs = we.iter().fold(1.0, |m: Real, v| m.max(v.abs()));
-                assert!(dv < 1e-6 * vs, "{ctx}: velocities differ by {dv}: {w:?} vs {we:?}");
+                assert!(
+                    dv < 1e-6 * vs,
+                    "{ctx}: velocities differ by {dv}: {w:?} vs {we:?}"
+                );
                 if kind == Kind::Well {
                     let di = common::max_diff(&imp, &exact.impulses);
-                    assert!(di < 1e-6 * s, "{ctx}: impulses differ by {di}: {imp:?} vs {:?}", exact.impulses);
+                    assert!(
+                        di < 1e-6 * s,
+                        "{ctx}: impulses differ by {di}: {imp:?} vs {:?}",
+                        exact.impulses
+                    );
                 }
             }
         }
@@ -101,15 +133,25 @@ fn psor_matches_the_exact_solver_on_well_conditioned_problems() {
         let d = assembled(&p);
         let s = scale(&exact.impulses) * p.points.len() as Real;
         for omega in [1.0, 1.3] {
-            let mut psor = PsorSolver::with_settings(PsorSettings { omega, ..PsorSettings::default() });
+            let mut psor = PsorSolver::with_settings(PsorSettings {
+                omega,
+                ..PsorSettings::default()
+            });
             let zeros = vec![Impulse::ZERO; p.points.len()];
             let (imp, _, report) = run(&mut psor, &p, &tight(100_000), &zeros);
-            let ctx = format!("seed {seed} omega {omega}: its {} res {}", report.iterations, report.natural_residual);
+            let ctx = format!(
+                "seed {seed} omega {omega}: its {} res {}",
+                report.iterations, report.natural_residual
+            );
             assert!(report.converged, "{ctx}");
             let v = violation(&d, &rows(&imp));
             assert!(v.max() < 1e-7 * s, "{ctx}: violation {v:?}");
             let di = common::max_diff(&imp, &exact.impulses);
-            assert!(di < 1e-5 * s, "{ctx}: impulses differ by {di}: {imp:?} vs {:?}", exact.impulses);
+            assert!(
+                di < 1e-5 * s,
+                "{ctx}: impulses differ by {di}: {imp:?} vs {:?}",
+                exact.impulses
+            );
         }
     }
 }
@@ -122,9 +164,13 @@ fn newton_from_the_exact_solution_stops_at_once() {
             let p = random_problem(seed, kind);
             let exact = solve_exact(&p, 1e-12).unwrap();
             let mut newton = NewtonSolver::new();
-            let (imp, _, report) = run(&mut newton, &p, &SolverSettings::default(), &exact.impulses);
+            let (imp, _, report) =
+                run(&mut newton, &p, &SolverSettings::default(), &exact.impulses);
             assert_eq!(report.iterations, 1, "{kind:?} seed {seed}: {report:?}");
-            assert!(common::max_diff(&imp, &exact.impulses) < 1e-4, "{kind:?} seed {seed}");
+            assert!(
+                common::max_diff(&imp, &exact.impulses) < 1e-4,
+                "{kind:?} seed {seed}"
+            );
         }
     }
 }
@@ -141,9 +187,15 @@ fn hostile_problems_fail_gracefully() {
         let zeros = vec![Impulse::ZERO; p.points.len()];
         let mut newton = NewtonSolver::new();
         let mut psor = PsorSolver::new();
-        for solver in [&mut newton as &mut dyn deepcontact_core::VelocitySolver, &mut psor] {
+        for solver in [
+            &mut newton as &mut dyn deepcontact_core::VelocitySolver,
+            &mut psor,
+        ] {
             let (imp, vel, report) = run(solver, &p, &tight(300), &zeros);
-            assert!(imp.iter().all(|i| i.is_finite()) && vel.iter().all(|v| v.0.x.is_finite() && v.1.is_finite()));
+            assert!(
+                imp.iter().all(|i| i.is_finite())
+                    && vel.iter().all(|v| v.0.x.is_finite() && v.1.is_finite())
+            );
             assert_eq!(report.residual_inf.len(), report.iterations as usize);
             // The reported natural residual is the one of the returned impulses.
             let mut w = vec![0.0; d.rows()];
@@ -151,9 +203,57 @@ fn hostile_problems_fail_gracefully() {
             assert!((report.natural_residual - d.natural_residual(&rows(&imp), &w)).abs() < 1e-9);
             if report.converged && solver.name() == "newton" {
                 converged += 1;
-                assert!(violation(&d, &rows(&imp)).max() < 1e-8 * scale(&imp) * p.points.len() as Real);
+                assert!(
+                    violation(&d, &rows(&imp)).max() < 1e-8 * scale(&imp) * p.points.len() as Real
+                );
             }
         }
     }
-    assert!(converged >= SEEDS * 3 / 4, "newton converged on only {converged} of {SEEDS}");
+    assert!(
+        converged >= SEEDS * 3 / 4,
+        "newton converged on only {converged} of {SEEDS}"
+    );
+}
+
+/// Where `W` is regular the dense and sparse Newton paths make the same iterates.
+#[test]
+fn dense_and_sparse_newton_make_the_same_iterates() {
+    for seed in 0..SEEDS {
+        let p = random_problem(seed, Kind::Well);
+        let (mut dense, mut sparse) = (Delassus::new(), Delassus::new());
+        dense.assemble(&p, AssemblyMode::Dense, 0).unwrap();
+        sparse
+            .assemble(&p, AssemblyMode::Sparse, usize::MAX)
+            .unwrap();
+        let (a, b) = (dense.to_dense(), sparse.to_dense());
+        for j in 0..dense.rows() {
+            for i in 0..dense.rows() {
+                assert!(
+                    (a[(i, j)] - b[(i, j)]).abs() < 1e-12,
+                    "seed {seed}: W({i},{j})"
+                );
+            }
+        }
+        let zeros = vec![Impulse::ZERO; p.points.len()];
+        for its in 1..6 {
+            let settings = SolverSettings {
+                max_iterations: its,
+                tolerance: 0.0,
+                ..SolverSettings::default()
+            };
+            let mut out = Vec::new();
+            for assembly in [AssemblyMode::Dense, AssemblyMode::Sparse] {
+                let mut newton = NewtonSolver::with_settings(NewtonSettings {
+                    assembly,
+                    ..NewtonSettings::default()
+                });
+                out.push(run(&mut newton, &p, &settings, &zeros).0);
+            }
+            let d = common::max_diff(&out[0], &out[1]);
+            assert!(
+                d < 1e-9 * scale(&out[0]),
+                "seed {seed} after {its} iterations: {d}"
+            );
+        }
+    }
 }

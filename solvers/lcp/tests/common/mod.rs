@@ -8,8 +8,8 @@ use std::sync::OnceLock;
 use deepcontact_core::math::{Real, Vector};
 use deepcontact_core::rng::PortableRng;
 use deepcontact_core::{
-    CarriedWarmStart, ContactId, ContactProblem, Impulse, ProblemBody, SolveReport, SolverSettings, VelocitySolver,
-    WorldSettings, scene,
+    CarriedWarmStart, ContactId, ContactProblem, Impulse, ProblemBody, SolveReport, SolverSettings,
+    VelocitySolver, WorldSettings, scene,
 };
 use deepcontact_pgs::{PgsPositionSolver, PgsSolver};
 
@@ -58,24 +58,48 @@ fn unit(angle: Real) -> Vector {
 pub fn random_problem(seed: u64, kind: Kind) -> ContactProblem {
     let mut rng = PortableRng::new(seed);
     let mut p = ContactProblem::new();
-    let mass_range = if matches!(kind, Kind::Bad | Kind::Hostile) { (1e-3, 1e1) } else { (0.5, 2.0) };
+    let mass_range = if matches!(kind, Kind::Bad | Kind::Hostile) {
+        (1e-3, 1e1)
+    } else {
+        (0.5, 2.0)
+    };
     let ground = p.add_body(body(&mut rng, false, mass_range));
-    let nd = 1 + (rng.next_u64() % if matches!(kind, Kind::Well | Kind::Bad) { 4 } else { 3 }) as u32;
-    let dynamic: Vec<u32> = (0..nd).map(|_| p.add_body(body(&mut rng, true, mass_range))).collect();
+    let nd = 1
+        + (rng.next_u64()
+            % if matches!(kind, Kind::Well | Kind::Bad) {
+                4
+            } else {
+                3
+            }) as u32;
+    let dynamic: Vec<u32> = (0..nd)
+        .map(|_| p.add_body(body(&mut rng, true, mass_range)))
+        .collect();
     let mut feature = 0u64;
     let mut pair_friction: HashMap<(u32, u32), Real> = HashMap::new();
-    let mut add = |p: &mut ContactProblem, rng: &mut PortableRng, a: u32, b: u32, at: Vector, n: Vector| {
-        feature += 1;
-        let id = ContactId { body_a: a, body_b: b, feature_a: feature, feature_b: 0 };
-        // All points of one body pair share its friction, as in a world.
-        let friction = *pair_friction.entry((a.min(b), a.max(b))).or_insert_with(|| rng.uniform_range(0.0, 1.0));
-        // Restitution (a velocity bias) except on the nearly coincident points of `Bad`,
-        // where one point above the restitution threshold and one below would ask for two
-        // different velocities along (almost) the same direction.
-        let restitution =
-            if matches!(kind, Kind::Well | Kind::Redundant) && rng.uniform() < 0.3 { rng.uniform() } else { 0.0 };
-        p.add_point(id, a, b, at, n, -0.01, friction, restitution, 0.5);
-    };
+    let mut add =
+        |p: &mut ContactProblem, rng: &mut PortableRng, a: u32, b: u32, at: Vector, n: Vector| {
+            feature += 1;
+            let id = ContactId {
+                body_a: a,
+                body_b: b,
+                feature_a: feature,
+                feature_b: 0,
+            };
+            // All points of one body pair share its friction, as in a world.
+            let friction = *pair_friction
+                .entry((a.min(b), a.max(b)))
+                .or_insert_with(|| rng.uniform_range(0.0, 1.0));
+            // Restitution (a velocity bias) except on the nearly coincident points of `Bad`,
+            // where one point above the restitution threshold and one below would ask for two
+            // different velocities along (almost) the same direction.
+            let restitution = if matches!(kind, Kind::Well | Kind::Redundant) && rng.uniform() < 0.3
+            {
+                rng.uniform()
+            } else {
+                0.0
+            };
+            p.add_point(id, a, b, at, n, -0.01, friction, restitution, 0.5);
+        };
     match kind {
         Kind::Well => {
             // One point per dynamic body (2 rows for its 3 degrees of freedom): W is regular.
@@ -87,7 +111,8 @@ pub fn random_problem(seed: u64, kind: Kind) -> ContactProblem {
                     others[(rng.next_u64() % others.len() as u64) as usize]
                 };
                 let normal = unit(rng.uniform_range(0.0, std::f64::consts::TAU));
-                let at = p.bodies[b as usize].position + Vector::new(rng.normal(), rng.normal()) * 0.5;
+                let at =
+                    p.bodies[b as usize].position + Vector::new(rng.normal(), rng.normal()) * 0.5;
                 p.begin_manifold();
                 add(&mut p, &mut rng, a, b, at, normal);
             }
@@ -103,7 +128,8 @@ pub fn random_problem(seed: u64, kind: Kind) -> ContactProblem {
                     others[(rng.next_u64() % others.len() as u64) as usize]
                 };
                 let normal = unit(rng.uniform_range(0.0, std::f64::consts::TAU));
-                let at = p.bodies[b as usize].position + Vector::new(rng.normal(), rng.normal()) * 0.5;
+                let at =
+                    p.bodies[b as usize].position + Vector::new(rng.normal(), rng.normal()) * 0.5;
                 p.begin_manifold();
                 add(&mut p, &mut rng, a, b, at, normal);
                 if rng.uniform() < 0.7 {
@@ -127,7 +153,8 @@ pub fn random_problem(seed: u64, kind: Kind) -> ContactProblem {
                     if o == b { ground } else { o }
                 };
                 let normal = unit(rng.uniform_range(0.0, std::f64::consts::TAU));
-                let at = p.bodies[b as usize].position + Vector::new(rng.normal(), rng.normal()) * 0.5;
+                let at =
+                    p.bodies[b as usize].position + Vector::new(rng.normal(), rng.normal()) * 0.5;
                 p.begin_manifold();
                 add(&mut p, &mut rng, a, b, at, normal);
                 made += 1;
@@ -181,8 +208,12 @@ pub const PILE_STEPS: u64 = 150;
 pub fn pile() -> &'static PileFixture {
     static FIXTURE: OnceLock<PileFixture> = OnceLock::new();
     FIXTURE.get_or_init(|| {
-        let mut world = scene::pile(12345, 100).unwrap().build(WorldSettings::default()).unwrap();
-        let (mut solver, mut position, mut warm) = (PgsSolver::new(), PgsPositionSolver::new(), CarriedWarmStart);
+        let mut world = scene::pile(12345, 100)
+            .unwrap()
+            .build(WorldSettings::default())
+            .unwrap();
+        let (mut solver, mut position, mut warm) =
+            (PgsSolver::new(), PgsPositionSolver::new(), CarriedWarmStart);
         for _ in 0..PILE_STEPS - 1 {
             world.step(&mut warm, &mut solver, &mut position).unwrap();
         }
@@ -191,11 +222,18 @@ pub fn pile() -> &'static PileFixture {
         let after: HashMap<ContactId, Impulse> = world.contacts().iter().copied().collect();
         let problems = world.last_problems().to_vec();
         let lookup = |m: &HashMap<ContactId, Impulse>, p: &ContactProblem| -> Vec<Impulse> {
-            p.points.iter().map(|pt| m.get(&pt.id).copied().unwrap_or(Impulse::ZERO)).collect()
+            p.points
+                .iter()
+                .map(|pt| m.get(&pt.id).copied().unwrap_or(Impulse::ZERO))
+                .collect()
         };
         let carried = problems.iter().map(|p| lookup(&before, p)).collect();
         let solved = problems.iter().map(|p| lookup(&after, p)).collect();
-        PileFixture { problems, carried, solved }
+        PileFixture {
+            problems,
+            carried,
+            solved,
+        }
     })
 }
 
@@ -209,19 +247,25 @@ pub fn run(
     let mut imp = start.to_vec();
     let mut vel = vec![(Vector::zeros(), 0.0); problem.bodies.len()];
     let mut report = SolveReport::default();
-    solver.solve(problem, settings, &mut imp, &mut vel, &mut report).unwrap();
+    solver
+        .solve(problem, settings, &mut imp, &mut vel, &mut report)
+        .unwrap();
     (imp, vel, report)
 }
 
 /// Largest component difference between two impulse lists.
 pub fn max_diff(a: &[Impulse], b: &[Impulse]) -> Real {
     assert_eq!(a.len(), b.len());
-    a.iter().zip(b).fold(0.0, |m: Real, (x, y)| m.max((x.normal - y.normal).abs()).max((x.tangent - y.tangent).abs()))
+    a.iter().zip(b).fold(0.0, |m: Real, (x, y)| {
+        m.max((x.normal - y.normal).abs())
+            .max((x.tangent - y.tangent).abs())
+    })
 }
 
 /// Largest impulse magnitude (at least 1), to scale tolerances.
 pub fn scale(a: &[Impulse]) -> Real {
-    a.iter().fold(1.0, |m: Real, x| m.max(x.normal.abs()).max(x.tangent.abs()))
+    a.iter()
+        .fold(1.0, |m: Real, x| m.max(x.normal.abs()).max(x.tangent.abs()))
 }
 
 /// Row layout `[n0, t0, ...]` of impulses.
