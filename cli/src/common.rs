@@ -59,6 +59,14 @@ pub struct SolverArgs {
     /// Norm of the stop rule.
     #[arg(long, value_enum, default_value = "inf")]
     pub norm: NormArg,
+    /// Keep contact points up to this separation in metres (0 = touching only, as Box2D
+    /// v2.4 circles; a small margin gives speculative contacts that do not flicker).
+    #[arg(long, default_value_t = 0.0)]
+    pub prediction: f64,
+    /// Linear slop of the position pass in metres (the original code's 0.0005; Box2D's
+    /// default is 0.005).
+    #[arg(long, default_value_t = 0.0005)]
+    pub linear_slop: f64,
 }
 
 impl SolverArgs {
@@ -73,6 +81,11 @@ impl SolverArgs {
                     NormArg::L2 => ResidualNorm::L2,
                 },
                 min_iterations: 1,
+            },
+            prediction: self.prediction,
+            position: deepcontact_core::PositionSettings {
+                linear_slop: self.linear_slop,
+                ..deepcontact_core::PositionSettings::default()
             },
             ..WorldSettings::default()
         }

@@ -12,7 +12,10 @@ use crate::common::CliError;
 /// written to a temporary file and renamed). Dynamic bodies are blue outlines with a radius
 /// line showing their angle, static bodies black, contact normals short red segments.
 pub fn render_world(world: &World, path: &Path) -> Result<(), CliError> {
-    let plot_err = |e: &dyn std::fmt::Display| CliError::Plot { path: path.display().to_string(), reason: e.to_string() };
+    let plot_err = |e: &dyn std::fmt::Display| CliError::Plot {
+        path: path.display().to_string(),
+        reason: e.to_string(),
+    };
     let outline = |b: &deepcontact_core::Body| -> Vec<(f64, f64)> {
         let mut pts: Vec<(f64, f64)> = b
             .shape_desc
@@ -28,7 +31,10 @@ pub fn render_world(world: &World, path: &Path) -> Result<(), CliError> {
         }
         pts
     };
-    let (mut lo, mut hi) = ((f64::INFINITY, f64::INFINITY), (f64::NEG_INFINITY, f64::NEG_INFINITY));
+    let (mut lo, mut hi) = (
+        (f64::INFINITY, f64::INFINITY),
+        (f64::NEG_INFINITY, f64::NEG_INFINITY),
+    );
     for b in world.bodies() {
         for (x, y) in outline(b) {
             lo = (lo.0.min(x), lo.1.min(y));
@@ -46,7 +52,10 @@ pub fn render_world(world: &World, path: &Path) -> Result<(), CliError> {
         root.fill(&WHITE).map_err(|e| plot_err(&e))?;
         let mut chart = ChartBuilder::on(&root)
             .margin(10)
-            .build_cartesian_2d((cx - 0.5 * span)..(cx + 0.5 * span), (cy - 0.5 * span)..(cy + 0.5 * span))
+            .build_cartesian_2d(
+                (cx - 0.5 * span)..(cx + 0.5 * span),
+                (cy - 0.5 * span)..(cy + 0.5 * span),
+            )
             .map_err(|e| plot_err(&e))?;
         for b in world.bodies() {
             let (colour, width) = match b.kind {
@@ -55,10 +64,17 @@ pub fn render_world(world: &World, path: &Path) -> Result<(), CliError> {
                 BodyKind::Static => (BLACK, 3),
             };
             chart
-                .draw_series(std::iter::once(PathElement::new(outline(b), colour.stroke_width(width))))
+                .draw_series(std::iter::once(PathElement::new(
+                    outline(b),
+                    colour.stroke_width(width),
+                )))
                 .map_err(|e| plot_err(&e))?;
             if b.kind == BodyKind::Dynamic {
-                let tip = b.position + rotate(&deepcontact_core::Vector::new(b.shape_desc.bounding_radius(), 0.0), b.angle);
+                let tip = b.position
+                    + rotate(
+                        &deepcontact_core::Vector::new(b.shape_desc.bounding_radius(), 0.0),
+                        b.angle,
+                    );
                 chart
                     .draw_series(std::iter::once(PathElement::new(
                         vec![(b.position.x, b.position.y), (tip.x, tip.y)],
@@ -69,11 +85,17 @@ pub fn render_world(world: &World, path: &Path) -> Result<(), CliError> {
         }
         let normals = world.raw_contacts().iter().map(|c| {
             let q = c.point + 0.25 * c.normal;
-            PathElement::new(vec![(c.point.x, c.point.y), (q.x, q.y)], RED.stroke_width(2))
+            PathElement::new(
+                vec![(c.point.x, c.point.y), (q.x, q.y)],
+                RED.stroke_width(2),
+            )
         });
         chart.draw_series(normals).map_err(|e| plot_err(&e))?;
         root.present().map_err(|e| plot_err(&e))?;
     }
-    std::fs::rename(&tmp, path).map_err(|e| CliError::Io { path: path.display().to_string(), source: e })?;
+    std::fs::rename(&tmp, path).map_err(|e| CliError::Io {
+        path: path.display().to_string(),
+        source: e,
+    })?;
     Ok(())
 }

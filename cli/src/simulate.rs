@@ -62,16 +62,27 @@ pub struct Totals {
 }
 
 /// Runs a scene and calls `each` for every step report; returns the world and the totals.
-pub fn run_scene(args: &SimulateArgs, mut each: impl FnMut(&StepReport)) -> Result<(World, Totals), CliError> {
+pub fn run_scene(
+    args: &SimulateArgs,
+    mut each: impl FnMut(&StepReport),
+) -> Result<(World, Totals), CliError> {
     let registry = registry();
     let mut warm = registry.build_provider(&args.warm_start)?;
     let mut solver = registry.build_solver(&args.solver.solver)?;
     let mut position = PgsPositionSolver::new();
     let scene = scene::by_name(&args.scene, args.seed, args.bodies)?;
     let mut world = scene.build(args.solver.world_settings())?;
-    let late_from = if args.steps >= 250 { 150 } else { args.steps * 6 / 10 };
-    let mut t = Totals { steps: args.steps, ..Totals::default() };
-    let (mut iters, mut late, mut late_n, mut contacts, mut point_iters, mut solve_s) = (0u64, 0u64, 0u64, 0u64, 0.0, 0.0);
+    let late_from = if args.steps >= 250 {
+        150
+    } else {
+        args.steps * 6 / 10
+    };
+    let mut t = Totals {
+        steps: args.steps,
+        ..Totals::default()
+    };
+    let (mut iters, mut late, mut late_n, mut contacts, mut point_iters, mut solve_s) =
+        (0u64, 0u64, 0u64, 0u64, 0.0, 0.0);
     let t0 = Instant::now();
     for s in 0..args.steps {
         let r = world.step(&mut warm, &mut solver, &mut position)?;
@@ -93,7 +104,11 @@ pub fn run_scene(args: &SimulateArgs, mut each: impl FnMut(&StepReport)) -> Resu
     t.mean_iterations_late = late as f64 / late_n.max(1) as f64;
     t.mean_contacts = contacts as f64 / n;
     t.ms_per_step = elapsed * 1e3 / n;
-    t.ns_per_point_iteration = if point_iters > 0.0 { solve_s * 1e9 / point_iters } else { 0.0 };
+    t.ns_per_point_iteration = if point_iters > 0.0 {
+        solve_s * 1e9 / point_iters
+    } else {
+        0.0
+    };
     Ok((world, t))
 }
 
@@ -134,7 +149,9 @@ pub fn run(args: SimulateArgs) -> Result<(), CliError> {
     })?;
     bar.finish_and_clear();
     if let Some(e) = json_err {
-        return Err(CliError::Usage(format!("cannot serialise a step report: {e}")));
+        return Err(CliError::Usage(format!(
+            "cannot serialise a step report: {e}"
+        )));
     }
     if !args.json {
         println!(
@@ -147,7 +164,10 @@ pub fn run(args: SimulateArgs) -> Result<(), CliError> {
             args.solver.tolerance,
             args.solver.max_iterations
         );
-        println!("{:>6} {:>9} {:>8} {:>10} {:>10} {:>9} {:>9}", "step", "contacts", "islands", "iterations", "residual", "pos.iter", "ms");
+        println!(
+            "{:>6} {:>9} {:>8} {:>10} {:>10} {:>9} {:>9}",
+            "step", "contacts", "islands", "iterations", "residual", "pos.iter", "ms"
+        );
         for row in &rows {
             println!("{row}");
         }
@@ -156,7 +176,11 @@ pub fn run(args: SimulateArgs) -> Result<(), CliError> {
              {:.2} ns per contact per iteration, capped steps {}, fallbacks {}",
             totals.steps,
             totals.mean_iterations,
-            if args.steps >= 250 { 150 } else { args.steps * 6 / 10 },
+            if args.steps >= 250 {
+                150
+            } else {
+                args.steps * 6 / 10
+            },
             totals.mean_iterations_late,
             totals.mean_contacts,
             totals.ms_per_step,

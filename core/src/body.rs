@@ -33,7 +33,11 @@ pub struct Material {
 
 impl Default for Material {
     fn default() -> Self {
-        Self { density: 1.0, friction: 0.5, restitution: 0.0 }
+        Self {
+            density: 1.0,
+            friction: 0.5,
+            restitution: 0.0,
+        }
     }
 }
 
@@ -72,7 +76,10 @@ impl BodyDesc {
 
     /// A static body with the default material at `position`.
     pub fn fixed(shape: ShapeDesc, position: Vector) -> Self {
-        Self { kind: BodyKind::Static, ..Self::dynamic(shape, position) }
+        Self {
+            kind: BodyKind::Static,
+            ..Self::dynamic(shape, position)
+        }
     }
 
     /// Replaces the material.
@@ -120,7 +127,12 @@ pub struct Body {
 
 impl Body {
     pub(crate) fn from_desc(desc: &BodyDesc, index: usize) -> Result<Self, CoreError> {
-        let bad = |field, value: Real, reason| CoreError::InvalidBodyParameter { body: index, field, value, reason };
+        let bad = |field, value: Real, reason| CoreError::InvalidBodyParameter {
+            body: index,
+            field,
+            value,
+            reason,
+        };
         let m = &desc.material;
         if !(m.friction.is_finite() && m.friction >= 0.0) {
             return Err(bad("friction", m.friction, "must be finite and >= 0"));
@@ -144,10 +156,18 @@ impl Body {
         let (mut mass, mut inertia, mut local_com) = (0.0, 0.0, Vector::zeros());
         if desc.kind == BodyKind::Dynamic {
             if !(m.density.is_finite() && m.density > 0.0) {
-                return Err(bad("density", m.density, "must be finite and > 0 for a dynamic body"));
+                return Err(bad(
+                    "density",
+                    m.density,
+                    "must be finite and > 0 for a dynamic body",
+                ));
             }
             if !desc.shape.is_solid() {
-                return Err(bad("density", m.density, "a dynamic body needs a shape with area"));
+                return Err(bad(
+                    "density",
+                    m.density,
+                    "a dynamic body needs a shape with area",
+                ));
             }
             (mass, inertia, local_com) = crate::shape::mass_properties(&shape, m.density);
             if !(mass.is_finite() && mass > 0.0 && inertia.is_finite() && inertia > 0.0) {
@@ -163,8 +183,16 @@ impl Body {
             material: *m,
             position,
             angle: desc.angle,
-            linear_velocity: if desc.kind == BodyKind::Static { Vector::zeros() } else { desc.linear_velocity },
-            angular_velocity: if desc.kind == BodyKind::Static { 0.0 } else { desc.angular_velocity },
+            linear_velocity: if desc.kind == BodyKind::Static {
+                Vector::zeros()
+            } else {
+                desc.linear_velocity
+            },
+            angular_velocity: if desc.kind == BodyKind::Static {
+                0.0
+            } else {
+                desc.angular_velocity
+            },
             mass,
             inv_mass: inv(mass),
             inertia,
@@ -190,6 +218,7 @@ impl Body {
 
     /// Kinetic energy `½ m v² + ½ I ω²`.
     pub fn kinetic_energy(&self) -> Real {
-        0.5 * self.mass * self.linear_velocity.norm_squared() + 0.5 * self.inertia * self.angular_velocity.powi(2)
+        0.5 * self.mass * self.linear_velocity.norm_squared()
+            + 0.5 * self.inertia * self.angular_velocity.powi(2)
     }
 }

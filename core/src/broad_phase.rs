@@ -17,7 +17,10 @@ impl Aabb {
     /// Whether the boxes overlap (touching counts).
     #[inline]
     pub fn overlaps(&self, o: &Aabb) -> bool {
-        self.min.x <= o.max.x && o.min.x <= self.max.x && self.min.y <= o.max.y && o.min.y <= self.max.y
+        self.min.x <= o.max.x
+            && o.min.x <= self.max.x
+            && self.min.y <= o.max.y
+            && o.min.y <= self.max.y
     }
 }
 
@@ -54,7 +57,10 @@ impl BroadPhase {
         for b in bodies {
             let aabb = b.shape.compute_aabb(&parry_pose(&b.origin(), b.angle));
             let m = Vector::new(margin, margin);
-            self.aabbs.push(Aabb { min: from_parry(aabb.mins) - m, max: from_parry(aabb.maxs) + m });
+            self.aabbs.push(Aabb {
+                min: from_parry(aabb.mins) - m,
+                max: from_parry(aabb.maxs) + m,
+            });
         }
         self.pairs.clear();
         if bodies.len() < 2 {
@@ -70,8 +76,14 @@ impl BroadPhase {
         self.entries.clear();
         self.large.clear();
         for (i, a) in self.aabbs.iter().enumerate() {
-            let (x0, y0) = ((a.min.x * inv).floor() as i64, (a.min.y * inv).floor() as i64);
-            let (x1, y1) = ((a.max.x * inv).floor() as i64, (a.max.y * inv).floor() as i64);
+            let (x0, y0) = (
+                (a.min.x * inv).floor() as i64,
+                (a.min.y * inv).floor() as i64,
+            );
+            let (x1, y1) = (
+                (a.max.x * inv).floor() as i64,
+                (a.max.y * inv).floor() as i64,
+            );
             if (x1 - x0 + 1) * (y1 - y0 + 1) > 16 {
                 self.large.push(i as u32);
                 continue;
@@ -86,7 +98,8 @@ impl BroadPhase {
 
         let movable = |i: u32| bodies[i as usize].kind != BodyKind::Static;
         let dynamic_pair = |a: u32, b: u32| {
-            bodies[a as usize].kind == BodyKind::Dynamic || bodies[b as usize].kind == BodyKind::Dynamic
+            bodies[a as usize].kind == BodyKind::Dynamic
+                || bodies[b as usize].kind == BodyKind::Dynamic
         };
         let mut start = 0;
         while start < self.entries.len() {
@@ -122,7 +135,9 @@ impl BroadPhase {
                 if i == l || (self.large[..k].contains(&i)) {
                     continue;
                 }
-                if (movable(l) || movable(i)) && dynamic_pair(l, i) && self.aabbs[l as usize].overlaps(&self.aabbs[i as usize])
+                if (movable(l) || movable(i))
+                    && dynamic_pair(l, i)
+                    && self.aabbs[l as usize].overlaps(&self.aabbs[i as usize])
                 {
                     self.pairs.push((l.min(i), l.max(i)));
                 }

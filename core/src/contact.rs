@@ -29,7 +29,10 @@ pub struct Impulse {
 
 impl Impulse {
     /// The zero impulse.
-    pub const ZERO: Impulse = Impulse { normal: 0.0, tangent: 0.0 };
+    pub const ZERO: Impulse = Impulse {
+        normal: 0.0,
+        tangent: 0.0,
+    };
 
     /// Builds an impulse.
     pub const fn new(normal: Real, tangent: Real) -> Self {

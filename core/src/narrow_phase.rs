@@ -63,7 +63,7 @@ impl NarrowPhase {
                 let start = self.contacts.len() as u32;
                 let normal = from_parry(pose_a.rotation * m.local_n1);
                 let nn = normal.norm();
-                if !(nn > 0.0) {
+                if nn.is_nan() || nn <= 0.0 {
                     continue;
                 }
                 let normal = normal / nn;

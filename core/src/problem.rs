@@ -138,7 +138,11 @@ impl ContactProblem {
             - a.linear_velocity
             - crate::math::cross_sv(a.angular_velocity, &r_a);
         let vn = dv.dot(&normal);
-        let velocity_bias = if vn < -restitution_threshold { -restitution * vn } else { 0.0 };
+        let velocity_bias = if vn < -restitution_threshold {
+            -restitution * vn
+        } else {
+            0.0
+        };
         let manifold = self.manifolds.len().saturating_sub(1) as u32;
         self.points.push(ContactPoint {
             id,
@@ -182,13 +186,17 @@ impl ContactProblem {
                 b.inv_inertia,
             ];
             if vals.iter().any(|v| !v.is_finite()) || b.inv_mass < 0.0 || b.inv_inertia < 0.0 {
-                return Err(CoreError::InvalidProblem(format!("body {i} has a non-finite or negative value")));
+                return Err(CoreError::InvalidProblem(format!(
+                    "body {i} has a non-finite or negative value"
+                )));
             }
         }
         let mut covered = 0u32;
         for (m, &(s, e)) in self.manifolds.iter().enumerate() {
             if s != covered || e < s || e - s > 2 || e as usize > self.points.len() {
-                return Err(CoreError::InvalidProblem(format!("manifold {m} has bad range {s}..{e}")));
+                return Err(CoreError::InvalidProblem(format!(
+                    "manifold {m} has bad range {s}..{e}"
+                )));
             }
             covered = e;
         }
@@ -200,7 +208,9 @@ impl ContactProblem {
         }
         for (i, p) in self.points.iter().enumerate() {
             if p.body_a >= nb || p.body_b >= nb || p.body_a == p.body_b {
-                return Err(CoreError::InvalidProblem(format!("point {i} has bad body indices")));
+                return Err(CoreError::InvalidProblem(format!(
+                    "point {i} has bad body indices"
+                )));
             }
             let vals = [
                 p.normal.x,
@@ -216,13 +226,19 @@ impl ContactProblem {
                 p.tangent_mass,
             ];
             if vals.iter().any(|v| !v.is_finite()) {
-                return Err(CoreError::InvalidProblem(format!("point {i} has a non-finite value")));
+                return Err(CoreError::InvalidProblem(format!(
+                    "point {i} has a non-finite value"
+                )));
             }
             if p.friction < 0.0 || p.normal_mass < 0.0 || p.tangent_mass < 0.0 {
-                return Err(CoreError::InvalidProblem(format!("point {i} has a negative friction or mass")));
+                return Err(CoreError::InvalidProblem(format!(
+                    "point {i} has a negative friction or mass"
+                )));
             }
             if (p.normal.norm() - 1.0).abs() > 1e-3 {
-                return Err(CoreError::InvalidProblem(format!("point {i} normal is not unit length")));
+                return Err(CoreError::InvalidProblem(format!(
+                    "point {i} normal is not unit length"
+                )));
             }
         }
         Ok(())

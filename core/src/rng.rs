@@ -20,7 +20,10 @@ pub struct PortableRng {
 impl PortableRng {
     /// A generator for `seed`; the same seed gives the same stream everywhere.
     pub fn new(seed: u64) -> Self {
-        Self { inner: ChaCha8Rng::seed_from_u64(seed), spare_normal: None }
+        Self {
+            inner: ChaCha8Rng::seed_from_u64(seed),
+            spare_normal: None,
+        }
     }
 
     /// Raw 64 random bits.

@@ -28,7 +28,10 @@ impl Scene {
 
     /// Number of dynamic bodies.
     pub fn dynamic_count(&self) -> usize {
-        self.bodies.iter().filter(|b| b.kind == BodyKind::Dynamic).count()
+        self.bodies
+            .iter()
+            .filter(|b| b.kind == BodyKind::Dynamic)
+            .count()
     }
 }
 
@@ -65,10 +68,22 @@ impl Default for PileParams {
 /// The static box of the pile: four segments (bottom, right, top, left) of side `side`
 /// with the lower-left corner at the origin, one static body each.
 pub fn walls(side: Real, material: Material) -> Vec<BodyDesc> {
-    let c = [Vector::new(0.0, 0.0), Vector::new(side, 0.0), Vector::new(side, side), Vector::new(0.0, side)];
+    let c = [
+        Vector::new(0.0, 0.0),
+        Vector::new(side, 0.0),
+        Vector::new(side, side),
+        Vector::new(0.0, side),
+    ];
     (0..4)
         .map(|i| {
-            BodyDesc::fixed(ShapeDesc::Segment { a: c[i], b: c[(i + 1) % 4] }, Vector::zeros()).with_material(material)
+            BodyDesc::fixed(
+                ShapeDesc::Segment {
+                    a: c[i],
+                    b: c[(i + 1) % 4],
+                },
+                Vector::zeros(),
+            )
+            .with_material(material)
         })
         .collect()
 }
@@ -83,7 +98,11 @@ pub fn pile_with(seed: u64, params: &PileParams) -> Result<Scene, CoreError> {
     let sigma = params.sigma * scale;
     let r = params.radius;
     if !(r.is_finite() && r > 0.0 && side > 4.0 * r) {
-        return Err(CoreError::InvalidSetting { name: "pile.radius", value: r, reason: "must be > 0 and fit the box" });
+        return Err(CoreError::InvalidSetting {
+            name: "pile.radius",
+            value: r,
+            reason: "must be > 0 and fit the box",
+        });
     }
     let mut bodies = walls(side, params.wall_material);
     let mut rng = PortableRng::new(seed);
@@ -104,7 +123,10 @@ pub fn pile_with(seed: u64, params: &PileParams) -> Result<Scene, CoreError> {
                 reason: "could not place that many circles",
             });
         }
-        let p = Vector::new(centre.x + sigma * rng.normal(), centre.y + sigma * rng.normal());
+        let p = Vector::new(
+            centre.x + sigma * rng.normal(),
+            centre.y + sigma * rng.normal(),
+        );
         // Closer than its radius to a wall: centre within 2r of an edge.
         if p.x < 2.0 * r || p.y < 2.0 * r || p.x > side - 2.0 * r || p.y > side - 2.0 * r {
             continue;
@@ -113,7 +135,10 @@ pub fn pile_with(seed: u64, params: &PileParams) -> Result<Scene, CoreError> {
         let mut overlaps = false;
         'search: for gx in cx.saturating_sub(1)..=(cx + 1).min(n_cells - 1) {
             for gy in cy.saturating_sub(1)..=(cy + 1).min(n_cells - 1) {
-                if grid[gx * n_cells + gy].iter().any(|q| (q - p).norm_squared() < (2.0 * r).powi(2)) {
+                if grid[gx * n_cells + gy]
+                    .iter()
+                    .any(|q| (q - p).norm_squared() < (2.0 * r).powi(2))
+                {
                     overlaps = true;
                     break 'search;
                 }
@@ -123,15 +148,28 @@ pub fn pile_with(seed: u64, params: &PileParams) -> Result<Scene, CoreError> {
             continue;
         }
         grid[cx * n_cells + cy].push(p);
-        bodies.push(BodyDesc::dynamic(ShapeDesc::Ball { radius: r }, p).with_material(params.material));
+        bodies.push(
+            BodyDesc::dynamic(ShapeDesc::Ball { radius: r }, p).with_material(params.material),
+        );
         placed += 1;
     }
-    Ok(Scene { name: "pile".into(), bodies, min: Vector::zeros(), max: Vector::new(side, side) })
+    Ok(Scene {
+        name: "pile".into(),
+        bodies,
+        min: Vector::zeros(),
+        max: Vector::new(side, side),
+    })
 }
 
 /// The thesis pile with `bodies` circles (100 = the thesis's scene).
 pub fn pile(seed: u64, bodies: usize) -> Result<Scene, CoreError> {
-    pile_with(seed, &PileParams { bodies, ..PileParams::default() })
+    pile_with(
+        seed,
+        &PileParams {
+            bodies,
+            ..PileParams::default()
+        },
+    )
 }
 
 /// A pyramid of unit boxes, `base` boxes on the bottom row, on a static ground box.
@@ -145,13 +183,21 @@ pub fn pyramid(base: usize) -> Scene {
         let x0 = -(count as Real - 1.0) * half;
         for i in 0..count {
             bodies.push(BodyDesc::dynamic(
-                ShapeDesc::Cuboid { half_width: half, half_height: half },
+                ShapeDesc::Cuboid {
+                    half_width: half,
+                    half_height: half,
+                },
                 Vector::new(x0 + i as Real * 2.0 * half, y),
             ));
         }
     }
     let h = base as Real * 2.0 * half;
-    Scene { name: "pyramid".into(), bodies, min: Vector::new(-0.5 * width, -1.0), max: Vector::new(0.5 * width, h + 1.0) }
+    Scene {
+        name: "pyramid".into(),
+        bodies,
+        min: Vector::new(-0.5 * width, -1.0),
+        max: Vector::new(0.5 * width, h + 1.0),
+    }
 }
 
 /// A vertical stack of `count` unit boxes on a static ground box.
@@ -159,18 +205,29 @@ pub fn stack(count: usize) -> Scene {
     let mut bodies = vec![ground(6.0)];
     for i in 0..count {
         bodies.push(BodyDesc::dynamic(
-            ShapeDesc::Cuboid { half_width: 0.5, half_height: 0.5 },
+            ShapeDesc::Cuboid {
+                half_width: 0.5,
+                half_height: 0.5,
+            },
             Vector::new(0.0, 0.5 + i as Real),
         ));
     }
-    Scene { name: "stack".into(), bodies, min: Vector::new(-3.0, -1.0), max: Vector::new(3.0, count as Real + 1.0) }
+    Scene {
+        name: "stack".into(),
+        bodies,
+        min: Vector::new(-3.0, -1.0),
+        max: Vector::new(3.0, count as Real + 1.0),
+    }
 }
 
 /// One circle of radius 0.5 resting on a static ground box.
 pub fn resting_ball() -> Scene {
     Scene {
         name: "resting_ball".into(),
-        bodies: vec![ground(6.0), BodyDesc::dynamic(ShapeDesc::Ball { radius: 0.5 }, Vector::new(0.0, 0.5))],
+        bodies: vec![
+            ground(6.0),
+            BodyDesc::dynamic(ShapeDesc::Ball { radius: 0.5 }, Vector::new(0.0, 0.5)),
+        ],
         min: Vector::new(-3.0, -1.0),
         max: Vector::new(3.0, 2.0),
     }
@@ -179,21 +236,47 @@ pub fn resting_ball() -> Scene {
 /// A unit box resting on a static slope of `degrees`, friction `friction` on both.
 pub fn slope(degrees: Real, friction: Real) -> Scene {
     let angle = degrees.to_radians();
-    let material = Material { friction, ..Material::default() };
+    let material = Material {
+        friction,
+        ..Material::default()
+    };
     let (s, c) = angle.sin_cos();
     // Slope: a long thin static box through the origin, rotated.
-    let slope = BodyDesc::fixed(ShapeDesc::Cuboid { half_width: 10.0, half_height: 0.5 }, Vector::new(0.5 * s, -0.5 * c))
-        .with_material(material)
-        .with_angle(angle);
+    let slope = BodyDesc::fixed(
+        ShapeDesc::Cuboid {
+            half_width: 10.0,
+            half_height: 0.5,
+        },
+        Vector::new(0.5 * s, -0.5 * c),
+    )
+    .with_material(material)
+    .with_angle(angle);
     // Box on top, centred on the slope's upper surface at the origin.
-    let body = BodyDesc::dynamic(ShapeDesc::Cuboid { half_width: 0.5, half_height: 0.5 }, Vector::new(-0.5 * s, 0.5 * c))
-        .with_material(material)
-        .with_angle(angle);
-    Scene { name: "slope".into(), bodies: vec![slope, body], min: Vector::new(-10.0, -8.0), max: Vector::new(10.0, 8.0) }
+    let body = BodyDesc::dynamic(
+        ShapeDesc::Cuboid {
+            half_width: 0.5,
+            half_height: 0.5,
+        },
+        Vector::new(-0.5 * s, 0.5 * c),
+    )
+    .with_material(material)
+    .with_angle(angle);
+    Scene {
+        name: "slope".into(),
+        bodies: vec![slope, body],
+        min: Vector::new(-10.0, -8.0),
+        max: Vector::new(10.0, 8.0),
+    }
 }
 
 fn ground(width: Real) -> BodyDesc {
-    BodyDesc::fixed(ShapeDesc::Cuboid { half_width: 0.5 * width, half_height: 0.5 }, Vector::new(0.0, -0.5))
+    BodyDesc::fixed(
+        ShapeDesc::Cuboid {
+            half_width: 0.5 * width,
+            half_height: 0.5,
+        },
+        Vector::new(0.0, -0.5),
+    )
 }
 
 /// Names accepted by [`by_name`].
@@ -208,6 +291,10 @@ pub fn by_name(name: &str, seed: u64, bodies: usize) -> Result<Scene, CoreError>
         "pyramid" => Ok(pyramid(small)),
         "stack" => Ok(stack(small)),
         "resting_ball" => Ok(resting_ball()),
-        _ => Err(CoreError::InvalidSetting { name: "scene", value: Real::NAN, reason: "unknown scene name" }),
+        _ => Err(CoreError::InvalidSetting {
+            name: "scene",
+            value: Real::NAN,
+            reason: "unknown scene name",
+        }),
     }
 }

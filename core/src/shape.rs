@@ -71,7 +71,10 @@ impl ShapeDesc {
                 positive("radius", *radius)?;
                 SharedShape::ball(*radius as f32)
             }
-            ShapeDesc::Cuboid { half_width, half_height } => {
+            ShapeDesc::Cuboid {
+                half_width,
+                half_height,
+            } => {
                 positive("half_width", *half_width)?;
                 positive("half_height", *half_height)?;
                 SharedShape::cuboid(*half_width as f32, *half_height as f32)
@@ -79,7 +82,10 @@ impl ShapeDesc {
             ShapeDesc::ConvexPolygon { vertices } => {
                 finite_pts(vertices)?;
                 if vertices.len() < 3 {
-                    return Err(CoreError::DegeneratePolygon { body, reason: "fewer than 3 vertices" });
+                    return Err(CoreError::DegeneratePolygon {
+                        body,
+                        reason: "fewer than 3 vertices",
+                    });
                 }
                 let n = vertices.len();
                 let mut area2 = 0.0;
@@ -95,23 +101,36 @@ impl ShapeDesc {
                     area2 += crate::math::cross(&a, &b);
                 }
                 if area2 <= 1e-12 {
-                    return Err(CoreError::DegeneratePolygon { body, reason: "zero area" });
+                    return Err(CoreError::DegeneratePolygon {
+                        body,
+                        reason: "zero area",
+                    });
                 }
                 let pts = vertices.iter().map(to_parry).collect();
-                SharedShape::convex_polyline_unmodified(pts)
-                    .ok_or(CoreError::DegeneratePolygon { body, reason: "rejected by parry2d" })?
+                SharedShape::convex_polyline_unmodified(pts).ok_or(
+                    CoreError::DegeneratePolygon {
+                        body,
+                        reason: "rejected by parry2d",
+                    },
+                )?
             }
             ShapeDesc::Segment { a, b } => {
                 finite_pts(&[*a, *b])?;
                 if (a - b).norm() <= 1e-9 {
-                    return Err(CoreError::DegeneratePolygon { body, reason: "zero-length segment" });
+                    return Err(CoreError::DegeneratePolygon {
+                        body,
+                        reason: "zero-length segment",
+                    });
                 }
                 SharedShape::segment(to_parry(a), to_parry(b))
             }
             ShapeDesc::Polyline { vertices } => {
                 finite_pts(vertices)?;
                 if vertices.len() < 2 {
-                    return Err(CoreError::DegeneratePolygon { body, reason: "polyline needs 2 vertices" });
+                    return Err(CoreError::DegeneratePolygon {
+                        body,
+                        reason: "polyline needs 2 vertices",
+                    });
                 }
                 SharedShape::polyline(vertices.iter().map(to_parry).collect(), None)
             }
@@ -120,14 +139,20 @@ impl ShapeDesc {
 
     /// Whether the shape encloses area (and so can carry mass).
     pub fn is_solid(&self) -> bool {
-        matches!(self, ShapeDesc::Ball { .. } | ShapeDesc::Cuboid { .. } | ShapeDesc::ConvexPolygon { .. })
+        matches!(
+            self,
+            ShapeDesc::Ball { .. } | ShapeDesc::Cuboid { .. } | ShapeDesc::ConvexPolygon { .. }
+        )
     }
 
     /// Bounding radius around the local origin (used by scenes and renderers).
     pub fn bounding_radius(&self) -> Real {
         match self {
             ShapeDesc::Ball { radius } => *radius,
-            ShapeDesc::Cuboid { half_width, half_height } => half_width.hypot(*half_height),
+            ShapeDesc::Cuboid {
+                half_width,
+                half_height,
+            } => half_width.hypot(*half_height),
             ShapeDesc::ConvexPolygon { vertices } | ShapeDesc::Polyline { vertices } => {
                 vertices.iter().map(|v| v.norm()).fold(0.0, Real::max)
             }
@@ -144,10 +169,20 @@ impl ShapeDesc {
                     Vector::new(radius * t.cos(), radius * t.sin())
                 })
                 .collect(),
-            ShapeDesc::Cuboid { half_width: w, half_height: h } => {
-                vec![Vector::new(-w, -h), Vector::new(*w, -h), Vector::new(*w, *h), Vector::new(-w, *h)]
+            ShapeDesc::Cuboid {
+                half_width: w,
+                half_height: h,
+            } => {
+                vec![
+                    Vector::new(-w, -h),
+                    Vector::new(*w, -h),
+                    Vector::new(*w, *h),
+                    Vector::new(-w, *h),
+                ]
             }
-            ShapeDesc::ConvexPolygon { vertices } | ShapeDesc::Polyline { vertices } => vertices.clone(),
+            ShapeDesc::ConvexPolygon { vertices } | ShapeDesc::Polyline { vertices } => {
+                vertices.clone()
+            }
             ShapeDesc::Segment { a, b } => vec![*a, *b],
         }
     }

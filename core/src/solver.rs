@@ -32,7 +32,12 @@ pub struct SolverSettings {
 
 impl Default for SolverSettings {
     fn default() -> Self {
-        Self { max_iterations: 1000, tolerance: 1e-4, norm: ResidualNorm::Infinity, min_iterations: 1 }
+        Self {
+            max_iterations: 1000,
+            tolerance: 1e-4,
+            norm: ResidualNorm::Infinity,
+            min_iterations: 1,
+        }
     }
 }
 
@@ -40,10 +45,18 @@ impl SolverSettings {
     /// Rejects a zero cap, a negative or non-finite tolerance, or `min_iterations` = 0.
     pub fn validate(&self) -> Result<(), CoreError> {
         if self.max_iterations == 0 {
-            return Err(CoreError::InvalidSetting { name: "max_iterations", value: 0.0, reason: "must be >= 1" });
+            return Err(CoreError::InvalidSetting {
+                name: "max_iterations",
+                value: 0.0,
+                reason: "must be >= 1",
+            });
         }
         if self.min_iterations == 0 {
-            return Err(CoreError::InvalidSetting { name: "min_iterations", value: 0.0, reason: "must be >= 1" });
+            return Err(CoreError::InvalidSetting {
+                name: "min_iterations",
+                value: 0.0,
+                reason: "must be >= 1",
+            });
         }
         if !(self.tolerance.is_finite() && self.tolerance >= 0.0) {
             return Err(CoreError::InvalidSetting {
@@ -137,7 +150,15 @@ impl PositionSettings {
     /// Rejects out-of-range values.
     pub fn validate(&self) -> Result<(), CoreError> {
         let check = |name, value: Real, ok: bool, reason| {
-            if ok { Ok(()) } else { Err(CoreError::InvalidSetting { name, value, reason }) }
+            if ok {
+                Ok(())
+            } else {
+                Err(CoreError::InvalidSetting {
+                    name,
+                    value,
+                    reason,
+                })
+            }
         };
         check(
             "position.tolerance",
@@ -145,7 +166,12 @@ impl PositionSettings {
             self.tolerance.is_finite() && self.tolerance >= 0.0,
             "must be finite and >= 0",
         )?;
-        check("position.baumgarte", self.baumgarte, self.baumgarte > 0.0 && self.baumgarte <= 1.0, "must be in (0, 1]")?;
+        check(
+            "position.baumgarte",
+            self.baumgarte,
+            self.baumgarte > 0.0 && self.baumgarte <= 1.0,
+            "must be in (0, 1]",
+        )?;
         check(
             "position.linear_slop",
             self.linear_slop,

@@ -30,12 +30,32 @@ pub struct WarmStartContext<'a> {
 
 impl<'a> WarmStartContext<'a> {
     /// A context for a problem without a world (hand-built problems, tests, foreign engines).
-    pub fn new(problem: &'a ContactProblem, carried: &'a [Impulse], persisted: &'a [bool], step: u64, dt: Real) -> Self {
-        Self { problem, carried, persisted, step, island: 0, island_count: 1, dt, world: None }
+    pub fn new(
+        problem: &'a ContactProblem,
+        carried: &'a [Impulse],
+        persisted: &'a [bool],
+        step: u64,
+        dt: Real,
+    ) -> Self {
+        Self {
+            problem,
+            carried,
+            persisted,
+            step,
+            island: 0,
+            island_count: 1,
+            dt,
+            world: None,
+        }
     }
 
     /// Attaches the world and island position (used by [`World::step`](crate::World::step)).
-    pub fn with_world(mut self, world: &'a crate::World, island: usize, island_count: usize) -> Self {
+    pub fn with_world(
+        mut self,
+        world: &'a crate::World,
+        island: usize,
+        island_count: usize,
+    ) -> Self {
         self.world = Some(world);
         self.island = island;
         self.island_count = island_count;
@@ -80,14 +100,24 @@ pub enum WarmStartError {
 /// Checks a provider's output: finite everywhere, normal ≥ 0.
 pub fn check_output(out: &[Impulse], expected: usize) -> Result<(), WarmStartError> {
     if out.len() != expected {
-        return Err(WarmStartError::WrongLength { expected, got: out.len() });
+        return Err(WarmStartError::WrongLength {
+            expected,
+            got: out.len(),
+        });
     }
     for (point, imp) in out.iter().enumerate() {
         if !imp.is_finite() {
-            return Err(WarmStartError::NonFinite { point, normal: imp.normal, tangent: imp.tangent });
+            return Err(WarmStartError::NonFinite {
+                point,
+                normal: imp.normal,
+                tangent: imp.tangent,
+            });
         }
         if imp.normal < 0.0 {
-            return Err(WarmStartError::NegativeNormal { point, normal: imp.normal });
+            return Err(WarmStartError::NegativeNormal {
+                point,
+                normal: imp.normal,
+            });
         }
     }
     Ok(())
@@ -137,7 +167,11 @@ pub trait WarmStart: Send {
     fn name(&self) -> &str;
 
     /// Writes the initial impulses, one per point of `ctx.problem`, into `out` (zeroed on entry).
-    fn warm_start(&mut self, ctx: &WarmStartContext<'_>, out: &mut [Impulse]) -> Result<(), WarmStartError>;
+    fn warm_start(
+        &mut self,
+        ctx: &WarmStartContext<'_>,
+        out: &mut [Impulse],
+    ) -> Result<(), WarmStartError>;
 
     /// Sees the converged impulses of the island after the solve. Default: nothing.
     fn observe(&mut self, _ctx: &WarmStartContext<'_>, _solved: &[Impulse]) {}
@@ -147,7 +181,11 @@ impl<W: WarmStart + ?Sized> WarmStart for Box<W> {
     fn name(&self) -> &str {
         (**self).name()
     }
-    fn warm_start(&mut self, ctx: &WarmStartContext<'_>, out: &mut [Impulse]) -> Result<(), WarmStartError> {
+    fn warm_start(
+        &mut self,
+        ctx: &WarmStartContext<'_>,
+        out: &mut [Impulse],
+    ) -> Result<(), WarmStartError> {
         (**self).warm_start(ctx, out)
     }
     fn observe(&mut self, ctx: &WarmStartContext<'_>, solved: &[Impulse]) {
@@ -163,7 +201,11 @@ impl WarmStart for ZeroWarmStart {
     fn name(&self) -> &str {
         "none"
     }
-    fn warm_start(&mut self, _ctx: &WarmStartContext<'_>, out: &mut [Impulse]) -> Result<(), WarmStartError> {
+    fn warm_start(
+        &mut self,
+        _ctx: &WarmStartContext<'_>,
+        out: &mut [Impulse],
+    ) -> Result<(), WarmStartError> {
         out.fill(Impulse::ZERO);
         Ok(())
     }
@@ -177,9 +219,16 @@ impl WarmStart for CarriedWarmStart {
     fn name(&self) -> &str {
         "builtin"
     }
-    fn warm_start(&mut self, ctx: &WarmStartContext<'_>, out: &mut [Impulse]) -> Result<(), WarmStartError> {
+    fn warm_start(
+        &mut self,
+        ctx: &WarmStartContext<'_>,
+        out: &mut [Impulse],
+    ) -> Result<(), WarmStartError> {
         if ctx.carried.len() != out.len() {
-            return Err(WarmStartError::WrongLength { expected: out.len(), got: ctx.carried.len() });
+            return Err(WarmStartError::WrongLength {
+                expected: out.len(),
+                got: ctx.carried.len(),
+            });
         }
         out.copy_from_slice(ctx.carried);
         Ok(())

@@ -57,23 +57,41 @@ impl Default for WorldSettings {
 impl WorldSettings {
     /// Rejects out-of-range settings with a typed error naming the setting.
     pub fn validate(&self) -> Result<(), CoreError> {
-        let err = |name, value: Real, reason| Err(CoreError::InvalidSetting { name, value, reason });
+        let err = |name, value: Real, reason| {
+            Err(CoreError::InvalidSetting {
+                name,
+                value,
+                reason,
+            })
+        };
         if !(self.dt.is_finite() && self.dt > 0.0) {
             return err("dt", self.dt, "must be finite and > 0");
         }
         if !(self.gravity.x.is_finite() && self.gravity.y.is_finite()) {
-            return err("gravity", if self.gravity.x.is_finite() { self.gravity.y } else { self.gravity.x }, "must be finite");
+            return err(
+                "gravity",
+                if self.gravity.x.is_finite() {
+                    self.gravity.y
+                } else {
+                    self.gravity.x
+                },
+                "must be finite",
+            );
         }
         if !(self.prediction.is_finite() && self.prediction >= 0.0) {
             return err("prediction", self.prediction, "must be finite and >= 0");
         }
         if !(self.restitution_threshold.is_finite() && self.restitution_threshold >= 0.0) {
-            return err("restitution_threshold", self.restitution_threshold, "must be finite and >= 0");
+            return err(
+                "restitution_threshold",
+                self.restitution_threshold,
+                "must be finite and >= 0",
+            );
         }
-        if !(self.max_translation > 0.0) {
+        if self.max_translation.is_nan() || self.max_translation <= 0.0 {
             return err("max_translation", self.max_translation, "must be > 0");
         }
-        if !(self.max_rotation > 0.0) {
+        if self.max_rotation.is_nan() || self.max_rotation <= 0.0 {
             return err("max_rotation", self.max_rotation, "must be > 0");
         }
         self.solver.validate()?;
@@ -90,7 +108,10 @@ struct Persistent {
 
 impl Persistent {
     fn lookup(&self, id: &ContactId) -> Option<Impulse> {
-        self.impulses.binary_search_by(|(k, _)| k.cmp(id)).ok().map(|i| self.impulses[i].1)
+        self.impulses
+            .binary_search_by(|(k, _)| k.cmp(id))
+            .ok()
+            .map(|i| self.impulses[i].1)
     }
 }
 
@@ -132,7 +153,10 @@ impl World {
     /// An empty world with validated settings.
     pub fn new(settings: WorldSettings) -> Result<Self, CoreError> {
         settings.validate()?;
-        Ok(Self { settings, ..Self::default() })
+        Ok(Self {
+            settings,
+            ..Self::default()
+        })
     }
 
     /// Adds a body; parameters are validated (the error names the body index and field).
@@ -159,7 +183,9 @@ impl World {
     /// Mutable access to one body (to push it, teleport it, ...). Its state is re-validated
     /// when the next step starts.
     pub fn body_mut(&mut self, handle: BodyHandle) -> Result<&mut Body, CoreError> {
-        self.bodies.get_mut(handle.0 as usize).ok_or(CoreError::UnknownBody(handle.0 as usize))
+        self.bodies
+            .get_mut(handle.0 as usize)
+            .ok_or(CoreError::UnknownBody(handle.0 as usize))
     }
 
     /// The settings.
@@ -202,7 +228,13 @@ impl World {
     fn check_state(&self) -> Result<(), CoreError> {
         let step = self.step_index;
         for (i, b) in self.bodies.iter().enumerate() {
-            let bad = |field| Err(CoreError::NonFiniteState { body: i, field, step });
+            let bad = |field| {
+                Err(CoreError::NonFiniteState {
+                    body: i,
+                    field,
+                    step,
+                })
+            };
             if !(b.position.x.is_finite() && b.position.y.is_finite()) {
                 return bad("position");
             }
@@ -269,7 +301,10 @@ impl World {
                 };
                 let la = local(a, problem);
                 let lb = local(b, problem);
-                let (ma, mb) = (&self.bodies[a as usize].material, &self.bodies[b as usize].material);
+                let (ma, mb) = (
+                    &self.bodies[a as usize].material,
+                    &self.bodies[b as usize].material,
+                );
                 let friction = (ma.friction * mb.friction).sqrt();
                 let restitution = ma.restitution.max(mb.restitution);
                 problem.begin_manifold();
@@ -310,16 +345,24 @@ impl World {
         let settings = self.settings;
         settings.validate()?;
         let dt = settings.dt;
-        let mut report = StepReport { step: self.step_index, ..StepReport::default() };
+        let mut report = StepReport {
+            step: self.step_index,
+            ..StepReport::default()
+        };
 
         // 1. Integrate velocities (gravity only; no damping, as in the thesis).
-        for b in self.bodies.iter_mut().filter(|b| b.kind == BodyKind::Dynamic) {
+        for b in self
+            .bodies
+            .iter_mut()
+            .filter(|b| b.kind == BodyKind::Dynamic)
+        {
             b.linear_velocity += dt * settings.gravity;
         }
 
         // 2-3. Broad and narrow phase.
         let pairs = self.broad.find_pairs(&self.bodies, settings.prediction);
-        self.narrow.collide(&self.bodies, pairs, settings.prediction);
+        self.narrow
+            .collide(&self.bodies, pairs, settings.prediction);
 
         // 4-5. Islands and their contact problems.
         let mut s = std::mem::take(&mut self.scratch);
@@ -351,12 +394,20 @@ impl World {
             }
             s.warm.clear();
             s.warm.resize(n, Impulse::ZERO);
-            let ctx = WarmStartContext::new(&s.problems[k], &s.carried, &s.persisted, self.step_index, dt)
-                .with_world(self, k, n_islands);
+            let ctx = WarmStartContext::new(
+                &s.problems[k],
+                &s.carried,
+                &s.persisted,
+                self.step_index,
+                dt,
+            )
+            .with_world(self, k, n_islands);
 
             // 6. Warm start, checked before use.
             let t0 = Instant::now();
-            let provided = warm_start.warm_start(&ctx, &mut s.warm).and_then(|_| check_output(&s.warm, n));
+            let provided = warm_start
+                .warm_start(&ctx, &mut s.warm)
+                .and_then(|_| check_output(&s.warm, n));
             report.warm_start_seconds += t0.elapsed().as_secs_f64();
             if let Err(e) = provided {
                 match settings.guard {
@@ -380,10 +431,16 @@ impl World {
             s.impulses.clear();
             s.impulses.extend_from_slice(&s.warm);
             s.velocities.clear();
-            s.velocities.resize(s.problems[k].bodies.len(), (Vector::zeros(), 0.0));
+            s.velocities
+                .resize(s.problems[k].bodies.len(), (Vector::zeros(), 0.0));
             let t0 = Instant::now();
-            let solved =
-                solver.solve(&s.problems[k], &settings.solver, &mut s.impulses, &mut s.velocities, &mut s.report);
+            let solved = solver.solve(
+                &s.problems[k],
+                &settings.solver,
+                &mut s.impulses,
+                &mut s.velocities,
+                &mut s.report,
+            );
             report.solve_seconds += t0.elapsed().as_secs_f64();
             if let Err(e) = solved {
                 outcome = Err(e);
@@ -437,7 +494,11 @@ impl World {
         }
 
         // 9. Integrate positions, with Box2D's translation / rotation clamps.
-        for b in self.bodies.iter_mut().filter(|b| b.kind != BodyKind::Static) {
+        for b in self
+            .bodies
+            .iter_mut()
+            .filter(|b| b.kind != BodyKind::Static)
+        {
             let mut v = b.linear_velocity;
             let dx = dt * v;
             if dx.norm_squared() > settings.max_translation.powi(2) {
@@ -462,13 +523,14 @@ impl World {
                 let b = &self.bodies[pb.world_index as usize];
                 (b.position, b.angle)
             }));
-            let pr = match position_solver.solve_positions(problem, &settings.position, &mut s.poses) {
-                Ok(pr) => pr,
-                Err(e) => {
-                    self.scratch = s;
-                    return Err(e);
-                }
-            };
+            let pr =
+                match position_solver.solve_positions(problem, &settings.position, &mut s.poses) {
+                    Ok(pr) => pr,
+                    Err(e) => {
+                        self.scratch = s;
+                        return Err(e);
+                    }
+                };
             report.position_iterations = report.position_iterations.max(pr.iterations);
             min_sep = min_sep.min(pr.min_separation);
             for (pb, &(x, a)) in problem.bodies.iter().zip(&s.poses) {
@@ -483,8 +545,14 @@ impl World {
 
         // Keep this step's impulses for the next step's matching.
         self.persistent.impulses.clear();
-        self.persistent.impulses.extend(self.narrow.contacts.iter().zip(&s.solved).map(|(c, imp)| (c.id, *imp)));
-        self.persistent.impulses.sort_unstable_by(|a, b| a.0.cmp(&b.0));
+        self.persistent.impulses.extend(
+            self.narrow
+                .contacts
+                .iter()
+                .zip(&s.solved)
+                .map(|(c, imp)| (c.id, *imp)),
+        );
+        self.persistent.impulses.sort_unstable_by_key(|a| a.0);
 
         self.scratch = s;
         self.step_index += 1;

@@ -30,5 +30,15 @@ pub fn build(scene: &Scene) -> World {
 
 /// Bit patterns of every body's position and angle (for determinism checks).
 pub fn state_bits(world: &World) -> Vec<[u64; 3]> {
-    world.bodies().iter().map(|b| [b.position.x.to_bits(), b.position.y.to_bits(), b.angle.to_bits()]).collect()
+    world
+        .bodies()
+        .iter()
+        .map(|b| {
+            [
+                b.position.x.to_bits(),
+                b.position.y.to_bits(),
+                b.angle.to_bits(),
+            ]
+        })
+        .collect()
 }

@@ -2,9 +2,9 @@
 
 use deepcontact_core::math::Real;
 use deepcontact_core::{
-    BodyDesc, CarriedWarmStart, ContactProblem, CoreError, GuardPolicy, Impulse, Material, ShapeDesc, SolveReport,
-    SolverSettings, Vector, VelocitySolver, WarmStart, WarmStartContext, WarmStartError, World, WorldSettings,
-    ZeroWarmStart, scene,
+    BodyDesc, CarriedWarmStart, ContactProblem, CoreError, GuardPolicy, Impulse, Material,
+    ShapeDesc, SolveReport, SolverSettings, Vector, VelocitySolver, WarmStart, WarmStartContext,
+    WarmStartError, World, WorldSettings, ZeroWarmStart, scene,
 };
 use deepcontact_pgs::PgsSolver;
 use deepcontact_tests::{build, run};
@@ -16,7 +16,11 @@ fn settled_problems() -> Vec<(ContactProblem, Vec<Impulse>)> {
         fn name(&self) -> &str {
             "grab"
         }
-        fn warm_start(&mut self, ctx: &WarmStartContext<'_>, out: &mut [Impulse]) -> Result<(), WarmStartError> {
+        fn warm_start(
+            &mut self,
+            ctx: &WarmStartContext<'_>,
+            out: &mut [Impulse],
+        ) -> Result<(), WarmStartError> {
             if ctx.step == 160 {
                 self.0.push((ctx.problem.clone(), ctx.carried.to_vec()));
             }
@@ -31,12 +35,18 @@ fn settled_problems() -> Vec<(ContactProblem, Vec<Impulse>)> {
     grab.0
 }
 
-fn solve(problem: &ContactProblem, start: &[Impulse], settings: &SolverSettings) -> (Vec<Impulse>, Vec<(Vector, Real)>, SolveReport) {
+fn solve(
+    problem: &ContactProblem,
+    start: &[Impulse],
+    settings: &SolverSettings,
+) -> (Vec<Impulse>, Vec<(Vector, Real)>, SolveReport) {
     let mut solver = PgsSolver::new();
     let mut imp = start.to_vec();
     let mut vel = vec![(Vector::zeros(), 0.0); problem.bodies.len()];
     let mut report = SolveReport::default();
-    solver.solve(problem, settings, &mut imp, &mut vel, &mut report).unwrap();
+    solver
+        .solve(problem, settings, &mut imp, &mut vel, &mut report)
+        .unwrap();
     (imp, vel, report)
 }
 
@@ -56,20 +66,37 @@ fn net_impulses(problem: &ContactProblem, imp: &[Impulse]) -> Vec<(Vector, Real)
 
 #[test]
 fn converged_solves_from_none_and_builtin_agree() {
-    let settings = SolverSettings { tolerance: 1e-9, max_iterations: 200_000, ..SolverSettings::default() };
+    let settings = SolverSettings {
+        tolerance: 1e-9,
+        max_iterations: 200_000,
+        ..SolverSettings::default()
+    };
     for (problem, carried) in settled_problems() {
         let zeros = vec![Impulse::ZERO; problem.len()];
         let (a, va, ra) = solve(&problem, &zeros, &settings);
         let (b, vb, rb) = solve(&problem, &carried, &settings);
-        assert!(ra.converged && rb.converged, "{} / {} iterations", ra.iterations, rb.iterations);
+        assert!(
+            ra.converged && rb.converged,
+            "{} / {} iterations",
+            ra.iterations,
+            rb.iterations
+        );
         // Velocities are unique, and so is each body's net contact impulse Jᵀλ = M(v − v*);
         // the impulses themselves are not (a circle touching three neighbours is statically
         // indeterminate), so the contract is checked on what the physics determines.
         for ((v1, w1), (v2, w2)) in va.iter().zip(&vb) {
-            assert!((v1 - v2).norm() < 1e-5 && (w1 - w2).abs() < 1e-5, "velocities differ: {v1:?} {v2:?}");
+            assert!(
+                (v1 - v2).norm() < 1e-5 && (w1 - w2).abs() < 1e-5,
+                "velocities differ: {v1:?} {v2:?}"
+            );
         }
         let (na, nb) = (net_impulses(&problem, &a), net_impulses(&problem, &b));
-        for (i, (x, y)) in na.iter().zip(&nb).enumerate().filter(|(i, _)| problem.bodies[*i].inv_mass > 0.0) {
+        for (i, (x, y)) in na
+            .iter()
+            .zip(&nb)
+            .enumerate()
+            .filter(|(i, _)| problem.bodies[*i].inv_mass > 0.0)
+        {
             let d = (x.0 - y.0).norm().max((x.1 - y.1).abs());
             assert!(d < 1e-4, "body {i}: net impulse differs by {d}");
         }
@@ -78,11 +105,19 @@ fn converged_solves_from_none_and_builtin_agree() {
 
 #[test]
 fn a_converged_start_needs_one_iteration() {
-    let tight = SolverSettings { tolerance: 1e-10, max_iterations: 200_000, ..SolverSettings::default() };
+    let tight = SolverSettings {
+        tolerance: 1e-10,
+        max_iterations: 200_000,
+        ..SolverSettings::default()
+    };
     for (problem, _) in settled_problems() {
         let (solution, _, _) = solve(&problem, &vec![Impulse::ZERO; problem.len()], &tight);
         let (_, _, r) = solve(&problem, &solution, &SolverSettings::default());
-        assert_eq!(r.iterations, 1, "restart from the solution took {} iterations", r.iterations);
+        assert_eq!(
+            r.iterations, 1,
+            "restart from the solution took {} iterations",
+            r.iterations
+        );
         assert!(r.natural_residual < 1e-4);
     }
 }
@@ -92,7 +127,11 @@ impl WarmStart for Garbage {
     fn name(&self) -> &str {
         "garbage"
     }
-    fn warm_start(&mut self, _: &WarmStartContext<'_>, out: &mut [Impulse]) -> Result<(), WarmStartError> {
+    fn warm_start(
+        &mut self,
+        _: &WarmStartContext<'_>,
+        out: &mut [Impulse],
+    ) -> Result<(), WarmStartError> {
         out.fill(self.0);
         Ok(())
     }
@@ -100,7 +139,11 @@ impl WarmStart for Garbage {
 
 #[test]
 fn garbage_warm_starts_fall_back_to_zero_and_are_counted() {
-    for bad in [Impulse::new(Real::NAN, 0.0), Impulse::new(1.0, Real::INFINITY), Impulse::new(-1.0, 0.0)] {
+    for bad in [
+        Impulse::new(Real::NAN, 0.0),
+        Impulse::new(1.0, Real::INFINITY),
+        Impulse::new(-1.0, 0.0),
+    ] {
         let mut world = build(&scene::pile(3, 100).unwrap());
         let mut clean = build(&scene::pile(3, 100).unwrap());
         let reports = run(&mut world, &mut Garbage(bad), 120, |_, _| {}).unwrap();
@@ -108,19 +151,38 @@ fn garbage_warm_starts_fall_back_to_zero_and_are_counted() {
         let islands: usize = reports.iter().map(|r| r.islands).sum();
         let fallbacks: usize = reports.iter().map(|r| r.fallbacks).sum();
         assert!(islands > 0);
-        assert_eq!(fallbacks, islands, "every island should have fallen back for {bad:?}");
+        assert_eq!(
+            fallbacks, islands,
+            "every island should have fallen back for {bad:?}"
+        );
         // Falling back to zeros is exactly the cold start.
-        assert_eq!(deepcontact_tests::state_bits(&world), deepcontact_tests::state_bits(&clean));
+        assert_eq!(
+            deepcontact_tests::state_bits(&world),
+            deepcontact_tests::state_bits(&clean)
+        );
     }
 }
 
 #[test]
 fn garbage_warm_start_is_a_typed_error_under_the_error_policy() {
-    let settings = WorldSettings { guard: GuardPolicy::Error, ..WorldSettings::default() };
+    let settings = WorldSettings {
+        guard: GuardPolicy::Error,
+        ..WorldSettings::default()
+    };
     let mut world = scene::pile(3, 100).unwrap().build(settings).unwrap();
-    let err = run(&mut world, &mut Garbage(Impulse::new(Real::NAN, 0.0)), 200, |_, _| {}).unwrap_err();
+    let err = run(
+        &mut world,
+        &mut Garbage(Impulse::new(Real::NAN, 0.0)),
+        200,
+        |_, _| {},
+    )
+    .unwrap_err();
     match err {
-        CoreError::WarmStart { provider, source: WarmStartError::NonFinite { point: 0, .. }, .. } => {
+        CoreError::WarmStart {
+            provider,
+            source: WarmStartError::NonFinite { point: 0, .. },
+            ..
+        } => {
             assert_eq!(provider, "garbage")
         }
         other => panic!("unexpected error {other}"),
@@ -132,30 +194,114 @@ fn bad_bodies_and_settings_get_typed_errors_naming_the_field() {
     let mut world = World::new(WorldSettings::default()).unwrap();
     let ball = |r: Real| BodyDesc::dynamic(ShapeDesc::Ball { radius: r }, Vector::zeros());
     let err = world.add_body(&ball(-1.0)).unwrap_err();
-    assert!(matches!(err, CoreError::InvalidBodyParameter { field: "radius", .. }), "{err}");
-    let err = world.add_body(&ball(0.5).with_material(Material { density: Real::NAN, ..Material::default() })).unwrap_err();
-    assert!(matches!(err, CoreError::InvalidBodyParameter { field: "density", .. }), "{err}");
-    let err = world.add_body(&ball(0.5).with_material(Material { friction: -0.1, ..Material::default() })).unwrap_err();
-    assert!(matches!(err, CoreError::InvalidBodyParameter { field: "friction", .. }), "{err}");
-    let poly = ShapeDesc::ConvexPolygon { vertices: vec![Vector::new(0.0, 0.0), Vector::new(1.0, 0.0), Vector::new(2.0, 0.0)] };
-    let err = world.add_body(&BodyDesc::dynamic(poly, Vector::zeros())).unwrap_err();
+    assert!(
+        matches!(
+            err,
+            CoreError::InvalidBodyParameter {
+                field: "radius",
+                ..
+            }
+        ),
+        "{err}"
+    );
+    let err = world
+        .add_body(&ball(0.5).with_material(Material {
+            density: Real::NAN,
+            ..Material::default()
+        }))
+        .unwrap_err();
+    assert!(
+        matches!(
+            err,
+            CoreError::InvalidBodyParameter {
+                field: "density",
+                ..
+            }
+        ),
+        "{err}"
+    );
+    let err = world
+        .add_body(&ball(0.5).with_material(Material {
+            friction: -0.1,
+            ..Material::default()
+        }))
+        .unwrap_err();
+    assert!(
+        matches!(
+            err,
+            CoreError::InvalidBodyParameter {
+                field: "friction",
+                ..
+            }
+        ),
+        "{err}"
+    );
+    let poly = ShapeDesc::ConvexPolygon {
+        vertices: vec![
+            Vector::new(0.0, 0.0),
+            Vector::new(1.0, 0.0),
+            Vector::new(2.0, 0.0),
+        ],
+    };
+    let err = world
+        .add_body(&BodyDesc::dynamic(poly, Vector::zeros()))
+        .unwrap_err();
     assert!(matches!(err, CoreError::DegeneratePolygon { .. }), "{err}");
     for dt in [0.0, -0.01, Real::NAN] {
-        let err = World::new(WorldSettings { dt, ..WorldSettings::default() }).unwrap_err();
-        assert!(matches!(err, CoreError::InvalidSetting { name: "dt", .. }), "{err}");
+        let err = World::new(WorldSettings {
+            dt,
+            ..WorldSettings::default()
+        })
+        .unwrap_err();
+        assert!(
+            matches!(err, CoreError::InvalidSetting { name: "dt", .. }),
+            "{err}"
+        );
     }
-    let s = SolverSettings { max_iterations: 0, ..SolverSettings::default() };
-    assert!(matches!(s.validate(), Err(CoreError::InvalidSetting { name: "max_iterations", .. })));
-    let s = SolverSettings { tolerance: -1.0, ..SolverSettings::default() };
-    assert!(matches!(s.validate(), Err(CoreError::InvalidSetting { name: "tolerance", .. })));
+    let s = SolverSettings {
+        max_iterations: 0,
+        ..SolverSettings::default()
+    };
+    assert!(matches!(
+        s.validate(),
+        Err(CoreError::InvalidSetting {
+            name: "max_iterations",
+            ..
+        })
+    ));
+    let s = SolverSettings {
+        tolerance: -1.0,
+        ..SolverSettings::default()
+    };
+    assert!(matches!(
+        s.validate(),
+        Err(CoreError::InvalidSetting {
+            name: "tolerance",
+            ..
+        })
+    ));
 }
 
 #[test]
 fn non_finite_state_entering_a_step_is_reported_with_the_body() {
     let mut world = build(&scene::resting_ball());
-    world.body_mut(deepcontact_core::BodyHandle(1)).unwrap().linear_velocity.x = Real::NAN;
+    world
+        .body_mut(deepcontact_core::BodyHandle(1))
+        .unwrap()
+        .linear_velocity
+        .x = Real::NAN;
     let err = run(&mut world, &mut CarriedWarmStart, 1, |_, _| {}).unwrap_err();
-    assert!(matches!(err, CoreError::NonFiniteState { body: 1, field: "linear velocity", step: 0 }), "{err}");
+    assert!(
+        matches!(
+            err,
+            CoreError::NonFiniteState {
+                body: 1,
+                field: "linear velocity",
+                step: 0
+            }
+        ),
+        "{err}"
+    );
 }
 
 #[test]
@@ -165,13 +311,34 @@ fn malformed_problems_are_rejected_by_the_solver() {
     let mut imp = vec![Impulse::ZERO; problem.len()];
     let mut vel = vec![(Vector::zeros(), 0.0); problem.bodies.len()];
     let err = PgsSolver::new()
-        .solve(&problem, &SolverSettings::default(), &mut imp, &mut vel, &mut SolveReport::default())
+        .solve(
+            &problem,
+            &SolverSettings::default(),
+            &mut imp,
+            &mut vel,
+            &mut SolveReport::default(),
+        )
         .unwrap_err();
     assert!(matches!(err, CoreError::InvalidProblem(_)), "{err}");
     let mut short = vec![Impulse::ZERO; 1];
     problem.points[0].body_b = 1;
     let err = PgsSolver::new()
-        .solve(&problem, &SolverSettings::default(), &mut short, &mut vel, &mut SolveReport::default())
+        .solve(
+            &problem,
+            &SolverSettings::default(),
+            &mut short,
+            &mut vel,
+            &mut SolveReport::default(),
+        )
         .unwrap_err();
-    assert!(matches!(err, CoreError::LengthMismatch { what: "impulses", .. } | CoreError::InvalidProblem(_)), "{err}");
+    assert!(
+        matches!(
+            err,
+            CoreError::LengthMismatch {
+                what: "impulses",
+                ..
+            } | CoreError::InvalidProblem(_)
+        ),
+        "{err}"
+    );
 }

@@ -13,9 +13,22 @@ fn circle_resting_on_ground_stays_within_slop_for_1000_steps() {
         let ball = &w.bodies()[1];
         // Ground top at y = 0, radius 0.5: penetration = 0.5 - y.
         let penetration = 0.5 - ball.position.y;
-        assert!(penetration <= 3.0 * SLOP + 1e-9, "step {}: penetration {penetration}", r.step);
-        assert!(penetration >= -1e-3, "step {}: ball bounced to {}", r.step, ball.position.y);
-        assert!(ball.position.x.abs() < 1e-6, "ball drifted to x = {}", ball.position.x);
+        assert!(
+            penetration <= 3.0 * SLOP + 1e-9,
+            "step {}: penetration {penetration}",
+            r.step
+        );
+        assert!(
+            penetration >= -1e-3,
+            "step {}: ball bounced to {}",
+            r.step,
+            ball.position.y
+        );
+        assert!(
+            ball.position.x.abs() < 1e-6,
+            "ball drifted to x = {}",
+            ball.position.x
+        );
     })
     .unwrap();
 }
@@ -26,8 +39,16 @@ fn ten_box_stack_stands_for_500_steps() {
     run(&mut world, &mut CarriedWarmStart, 500, |_, _| {}).unwrap();
     for (i, b) in world.bodies().iter().enumerate().skip(1) {
         let expected_y = 0.5 + (i - 1) as Real;
-        assert!(b.position.x.abs() < 0.05, "box {i} slid sideways to x = {}", b.position.x);
-        assert!((b.position.y - expected_y).abs() < 0.05, "box {i} at y = {} (expected {expected_y})", b.position.y);
+        assert!(
+            b.position.x.abs() < 0.05,
+            "box {i} slid sideways to x = {}",
+            b.position.x
+        );
+        assert!(
+            (b.position.y - expected_y).abs() < 0.05,
+            "box {i} at y = {} (expected {expected_y})",
+            b.position.y
+        );
         assert!(b.angle.abs() < 0.02, "box {i} tilted by {}", b.angle);
     }
 }
@@ -56,13 +77,35 @@ fn pile_impulses_are_admissible_and_bodies_stay_in_the_box() {
     let mut deepest: Real = 0.0;
     run(&mut world, &mut CarriedWarmStart, 250, |w, r| {
         for (id, imp) in w.contacts() {
-            assert!(imp.is_finite(), "step {}: non-finite impulse at {id:?}", r.step);
-            assert!(imp.normal >= 0.0, "step {}: negative normal impulse {}", r.step, imp.normal);
+            assert!(
+                imp.is_finite(),
+                "step {}: non-finite impulse at {id:?}",
+                r.step
+            );
+            assert!(
+                imp.normal >= 0.0,
+                "step {}: negative normal impulse {}",
+                r.step,
+                imp.normal
+            );
             // μ = sqrt(0.5 · 0.5) = 0.5 for every pair of the pile (1e-12: μ computed by sqrt).
-            assert!(imp.tangent.abs() <= 0.5 * imp.normal * (1.0 + 1e-12), "step {}: friction cone violated {imp:?}", r.step);
+            assert!(
+                imp.tangent.abs() <= 0.5 * imp.normal * (1.0 + 1e-12),
+                "step {}: friction cone violated {imp:?}",
+                r.step
+            );
         }
-        for (i, b) in w.bodies().iter().enumerate().filter(|(_, b)| b.kind == BodyKind::Dynamic) {
-            assert!(b.position.x.is_finite() && b.position.y.is_finite(), "step {}: body {i} NaN", r.step);
+        for (i, b) in w
+            .bodies()
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| b.kind == BodyKind::Dynamic)
+        {
+            assert!(
+                b.position.x.is_finite() && b.position.y.is_finite(),
+                "step {}: body {i} NaN",
+                r.step
+            );
             assert!(
                 (0.0..=side).contains(&b.position.x) && (0.0..=side).contains(&b.position.y),
                 "step {}: body {i} escaped to {:?}",
@@ -94,13 +137,25 @@ fn residual_curve_is_nonempty_and_ends_under_tolerance_unless_capped() {
     let mut seen = 0;
     for r in reports.iter().filter(|r| r.contacts > 0) {
         seen += 1;
-        assert!(!r.residual_curve.is_empty(), "step {} has contacts but no residual curve", r.step);
+        assert!(
+            !r.residual_curve.is_empty(),
+            "step {} has contacts but no residual curve",
+            r.step
+        );
         assert_eq!(r.residual_curve.len(), r.velocity_iterations as usize);
         if r.capped_islands == 0 {
-            assert!(r.final_residual() < tol, "step {}: final residual {}", r.step, r.final_residual());
+            assert!(
+                r.final_residual() < tol,
+                "step {}: final residual {}",
+                r.step,
+                r.final_residual()
+            );
         }
     }
-    assert!(seen > 20, "pile should have contacts for many steps, had {seen}");
+    assert!(
+        seen > 20,
+        "pile should have contacts for many steps, had {seen}"
+    );
 }
 
 #[test]
@@ -108,7 +163,11 @@ fn builtin_needs_fewer_iterations_than_none_once_settled() {
     let late_mean = |warm: &mut dyn deepcontact_core::WarmStart| {
         let mut world = build(&scene::pile(12345, 100).unwrap());
         let reports = run(&mut world, warm, 200, |_, _| {}).unwrap();
-        reports[150..].iter().map(|r| r.velocity_iterations as Real).sum::<Real>() / 50.0
+        reports[150..]
+            .iter()
+            .map(|r| r.velocity_iterations as Real)
+            .sum::<Real>()
+            / 50.0
     };
     let none = late_mean(&mut ZeroWarmStart);
     let builtin = late_mean(&mut CarriedWarmStart);
@@ -118,14 +177,31 @@ fn builtin_needs_fewer_iterations_than_none_once_settled() {
 #[test]
 fn kinematic_body_moves_at_its_velocity_and_pushes() {
     use deepcontact_core::{BodyDesc, ShapeDesc, World, WorldSettings};
-    let mut desc = BodyDesc::dynamic(ShapeDesc::Cuboid { half_width: 0.5, half_height: 0.5 }, Vector::new(0.0, 0.0));
+    let mut desc = BodyDesc::dynamic(
+        ShapeDesc::Cuboid {
+            half_width: 0.5,
+            half_height: 0.5,
+        },
+        Vector::new(0.0, 0.0),
+    );
     desc.kind = BodyKind::Kinematic;
     desc.linear_velocity = Vector::new(1.0, 0.0);
     let ball = BodyDesc::dynamic(ShapeDesc::Ball { radius: 0.5 }, Vector::new(1.2, 0.0));
-    let settings = WorldSettings { gravity: Vector::zeros(), ..WorldSettings::default() };
+    let settings = WorldSettings {
+        gravity: Vector::zeros(),
+        ..WorldSettings::default()
+    };
     let mut world = World::with_bodies(settings, &[desc, ball]).unwrap();
     run(&mut world, &mut CarriedWarmStart, 100, |_, _| {}).unwrap();
     let k = &world.bodies()[0];
-    assert!((k.position.x - 1.0).abs() < 1e-9, "kinematic body at {}", k.position.x);
-    assert!(world.bodies()[1].position.x > 1.9, "ball was not pushed: {}", world.bodies()[1].position.x);
+    assert!(
+        (k.position.x - 1.0).abs() < 1e-9,
+        "kinematic body at {}",
+        k.position.x
+    );
+    assert!(
+        world.bodies()[1].position.x > 1.9,
+        "ball was not pushed: {}",
+        world.bodies()[1].position.x
+    );
 }

@@ -4,8 +4,8 @@
 use std::time::Instant;
 
 use deepcontact_core::{
-    CarriedWarmStart, ContactProblem, Impulse, SolveReport, SolverSettings, Vector, VelocitySolver, WarmStart,
-    WarmStartContext, WarmStartError, WorldSettings, scene,
+    CarriedWarmStart, ContactProblem, Impulse, SolveReport, SolverSettings, Vector, VelocitySolver,
+    WarmStart, WarmStartContext, WarmStartError, WorldSettings, scene,
 };
 use deepcontact_pgs::{PgsPositionSolver, PgsSolver};
 
@@ -14,7 +14,11 @@ impl WarmStart for Record {
     fn name(&self) -> &str {
         "record"
     }
-    fn warm_start(&mut self, ctx: &WarmStartContext<'_>, out: &mut [Impulse]) -> Result<(), WarmStartError> {
+    fn warm_start(
+        &mut self,
+        ctx: &WarmStartContext<'_>,
+        out: &mut [Impulse],
+    ) -> Result<(), WarmStartError> {
         if ctx.step == self.1 {
             self.0.push((ctx.problem.clone(), ctx.carried.to_vec()));
         }
@@ -23,17 +27,27 @@ impl WarmStart for Record {
 }
 
 fn main() {
-    let args: Vec<usize> = std::env::args().skip(1).filter_map(|a| a.parse().ok()).collect();
+    let args: Vec<usize> = std::env::args()
+        .skip(1)
+        .filter_map(|a| a.parse().ok())
+        .collect();
     let bodies = args.first().copied().unwrap_or(100);
     let iterations = args.get(1).copied().unwrap_or(1000) as u32;
     let steps = 240;
-    let mut world = scene::pile(12345, bodies).unwrap().build(WorldSettings::default()).unwrap();
+    let mut world = scene::pile(12345, bodies)
+        .unwrap()
+        .build(WorldSettings::default())
+        .unwrap();
     let mut rec = Record(Vec::new(), steps - 1);
     let (mut s, mut p) = (PgsSolver::new(), PgsPositionSolver::new());
     for _ in 0..steps {
         world.step(&mut rec, &mut s, &mut p).unwrap();
     }
-    let settings = SolverSettings { tolerance: 0.0, max_iterations: iterations, ..SolverSettings::default() };
+    let settings = SolverSettings {
+        tolerance: 0.0,
+        max_iterations: iterations,
+        ..SolverSettings::default()
+    };
     let points: usize = rec.0.iter().map(|(p, _)| p.len()).sum();
     let mut report = SolveReport::default();
     let mut best = f64::INFINITY;
@@ -42,7 +56,8 @@ fn main() {
         for (problem, carried) in &rec.0 {
             let mut imp = carried.clone();
             let mut vel = vec![(Vector::zeros(), 0.0); problem.bodies.len()];
-            s.solve(problem, &settings, &mut imp, &mut vel, &mut report).unwrap();
+            s.solve(problem, &settings, &mut imp, &mut vel, &mut report)
+                .unwrap();
         }
         best = best.min(t.elapsed().as_secs_f64());
     }

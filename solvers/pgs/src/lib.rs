@@ -36,7 +36,10 @@ impl From<PgsError> for deepcontact_core::CoreError {
     fn from(e: PgsError) -> Self {
         match e {
             PgsError::InvalidProblem(e) => e,
-            other => deepcontact_core::CoreError::Solver { solver: "pgs".into(), reason: other.to_string() },
+            other => deepcontact_core::CoreError::Solver {
+                solver: "pgs".into(),
+                reason: other.to_string(),
+            },
         }
     }
 }

@@ -1,7 +1,9 @@
 //! The position pass: Box2D v2.4's non-linear Gauss-Seidel on the contact separations.
 
 use deepcontact_core::math::{Real, Vector, cross, rotate};
-use deepcontact_core::{ContactProblem, CoreError, PositionReport, PositionSettings, PositionSolver};
+use deepcontact_core::{
+    ContactProblem, CoreError, PositionReport, PositionSettings, PositionSolver,
+};
 
 /// Non-linear Gauss-Seidel position correction (`b2ContactSolver::SolvePositionConstraints`).
 ///
@@ -33,7 +35,11 @@ impl PositionSolver for PgsPositionSolver {
     ) -> Result<PositionReport, CoreError> {
         settings.validate()?;
         if poses.len() != problem.bodies.len() {
-            return Err(CoreError::LengthMismatch { what: "poses", expected: problem.bodies.len(), got: poses.len() });
+            return Err(CoreError::LengthMismatch {
+                what: "poses",
+                expected: problem.bodies.len(),
+                got: poses.len(),
+            });
         }
         let mut report = PositionReport::default();
         if problem.points.is_empty() {
@@ -41,7 +47,8 @@ impl PositionSolver for PgsPositionSolver {
         }
         // Anchors relative to the centres at the time the contacts were computed.
         self.anchors.clear();
-        self.anchors.extend(problem.points.iter().map(|p| (p.r_a, p.r_b)));
+        self.anchors
+            .extend(problem.points.iter().map(|p| (p.r_a, p.r_b)));
         let limit = -settings.penetration_factor * settings.linear_slop;
         for it in 0..settings.max_iterations {
             let mut min_sep = Real::INFINITY;
@@ -57,9 +64,13 @@ impl PositionSolver for PgsPositionSolver {
                 let sep = p.separation + p.normal.dot(&d);
                 min_sep = min_sep.min(sep);
                 // Prevent large corrections and allow slop.
-                let c = (settings.baumgarte * (sep + settings.linear_slop)).clamp(-settings.max_linear_correction, 0.0);
+                let c = (settings.baumgarte * (sep + settings.linear_slop))
+                    .clamp(-settings.max_linear_correction, 0.0);
                 let (rna, rnb) = (cross(&ra, &p.normal), cross(&rb, &p.normal));
-                let k = a0.inv_mass + b0.inv_mass + a0.inv_inertia * rna * rna + b0.inv_inertia * rnb * rnb;
+                let k = a0.inv_mass
+                    + b0.inv_mass
+                    + a0.inv_inertia * rna * rna
+                    + b0.inv_inertia * rnb * rnb;
                 let impulse = if k > 0.0 { -c / k } else { 0.0 };
                 max_corr = max_corr.max(c.abs());
                 let pv = impulse * p.normal;
@@ -75,8 +86,14 @@ impl PositionSolver for PgsPositionSolver {
                 break;
             }
         }
-        if poses.iter().any(|(c, a)| !(c.x.is_finite() && c.y.is_finite() && a.is_finite())) {
-            return Err(CoreError::Solver { solver: "ngs".into(), reason: "position pass produced a non-finite pose".into() });
+        if poses
+            .iter()
+            .any(|(c, a)| !(c.x.is_finite() && c.y.is_finite() && a.is_finite()))
+        {
+            return Err(CoreError::Solver {
+                solver: "ngs".into(),
+                reason: "position pass produced a non-finite pose".into(),
+            });
         }
         Ok(report)
     }

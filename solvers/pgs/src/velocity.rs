@@ -7,7 +7,9 @@
 use std::time::Instant;
 
 use deepcontact_core::math::{Real, Vector, cross};
-use deepcontact_core::{ContactProblem, CoreError, Impulse, SolveReport, SolverSettings, VelocitySolver};
+use deepcontact_core::{
+    ContactProblem, CoreError, Impulse, SolveReport, SolverSettings, VelocitySolver,
+};
 
 use crate::PgsError;
 
@@ -25,7 +27,11 @@ pub struct PgsSettings {
 
 impl Default for PgsSettings {
     fn default() -> Self {
-        Self { block_solver: true, validate: true, ordering: Ordering::Coloured }
+        Self {
+            block_solver: true,
+            validate: true,
+            ordering: Ordering::Coloured,
+        }
     }
 }
 
@@ -118,7 +124,10 @@ impl PgsSolver {
 
     /// A solver with the given options.
     pub fn with_settings(settings: PgsSettings) -> Self {
-        Self { settings, ..Self::default() }
+        Self {
+            settings,
+            ..Self::default()
+        }
     }
 
     /// Stage 1, prepare: copy the problem into rows, manifolds and packed velocities.
@@ -130,30 +139,34 @@ impl PgsSolver {
             w: b.angular_velocity,
         }));
         self.rows.clear();
-        self.rows.extend(problem.points.iter().zip(start).map(|(p, s)| {
-            let t = p.tangent();
-            Row {
-                nx: p.normal.x,
-                ny: p.normal.y,
-                rna: cross(&p.r_a, &p.normal),
-                rnb: cross(&p.r_b, &p.normal),
-                rta: cross(&p.r_a, &t),
-                rtb: cross(&p.r_b, &t),
-                normal_mass: p.normal_mass,
-                tangent_mass: p.tangent_mass,
-                friction: p.friction,
-                bias: p.velocity_bias,
-                ln: s.normal,
-                lt: s.tangent,
-            }
-        }));
+        self.rows
+            .extend(problem.points.iter().zip(start).map(|(p, s)| {
+                let t = p.tangent();
+                Row {
+                    nx: p.normal.x,
+                    ny: p.normal.y,
+                    rna: cross(&p.r_a, &p.normal),
+                    rnb: cross(&p.r_b, &p.normal),
+                    rta: cross(&p.r_a, &t),
+                    rtb: cross(&p.r_b, &t),
+                    normal_mass: p.normal_mass,
+                    tangent_mass: p.tangent_mass,
+                    friction: p.friction,
+                    bias: p.velocity_bias,
+                    ln: s.normal,
+                    lt: s.tangent,
+                }
+            }));
         self.manifolds.clear();
         for &(s, e) in &problem.manifolds {
             if e == s {
                 continue;
             }
             let p = &problem.points[s as usize];
-            let (ba, bb) = (&problem.bodies[p.body_a as usize], &problem.bodies[p.body_b as usize]);
+            let (ba, bb) = (
+                &problem.bodies[p.body_a as usize],
+                &problem.bodies[p.body_b as usize],
+            );
             let mut m = Manifold {
                 a: p.body_a,
                 b: p.body_b,
@@ -174,7 +187,14 @@ impl PgsSolver {
                 // Box2D's condition-number guard: k11² < 1000 det.
                 if det > 0.0 && k11 * k11 < 1000.0 * det {
                     let inv = 1.0 / det;
-                    m.block = Some(Block { k11, k12, k22, i11: k22 * inv, i22: k11 * inv, i12: -k12 * inv });
+                    m.block = Some(Block {
+                        k11,
+                        k12,
+                        k22,
+                        i11: k22 * inv,
+                        i22: k11 * inv,
+                        i12: -k12 * inv,
+                    });
                 }
             }
             self.manifolds.push(m);
@@ -195,10 +215,22 @@ impl PgsSolver {
         self.colours.clear();
         let mut counts = [0u32; 65];
         for m in &self.manifolds {
-            let used_a = if movable(m.ma, m.ia) { self.body_colours[m.a as usize] } else { 0 };
-            let used_b = if movable(m.mb, m.ib) { self.body_colours[m.b as usize] } else { 0 };
+            let used_a = if movable(m.ma, m.ia) {
+                self.body_colours[m.a as usize]
+            } else {
+                0
+            };
+            let used_b = if movable(m.mb, m.ib) {
+                self.body_colours[m.b as usize]
+            } else {
+                0
+            };
             let free = !(used_a | used_b);
-            let c = if free == 0 { OVERFLOW } else { free.trailing_zeros() as u8 };
+            let c = if free == 0 {
+                OVERFLOW
+            } else {
+                free.trailing_zeros() as u8
+            };
             if c != OVERFLOW {
                 if movable(m.ma, m.ia) {
                     self.body_colours[m.a as usize] |= 1 << c;
@@ -218,7 +250,8 @@ impl PgsSolver {
             acc += c;
         }
         self.scratch.clear();
-        self.scratch.resize(self.manifolds.len(), Manifold::default());
+        self.scratch
+            .resize(self.manifolds.len(), Manifold::default());
         for (m, &c) in self.manifolds.iter().zip(&self.colours) {
             self.scratch[offsets[c as usize] as usize] = *m;
             offsets[c as usize] += 1;
@@ -302,9 +335,11 @@ impl PgsSolver {
         for m in &self.manifolds {
             let (va, vb) = (&self.vel[m.a as usize], &self.vel[m.b as usize]);
             for r in &self.rows[m.start as usize..(m.start + m.count) as usize] {
-                let rn = r.ln - (r.ln - r.normal_mass * (normal_velocity(r, va, vb) - r.bias)).max(0.0);
+                let rn =
+                    r.ln - (r.ln - r.normal_mass * (normal_velocity(r, va, vb) - r.bias)).max(0.0);
                 let bound = r.friction * r.ln;
-                let rt = r.lt - (r.lt - r.tangent_mass * tangent_velocity(r, va, vb)).clamp(-bound, bound);
+                let rt = r.lt
+                    - (r.lt - r.tangent_mass * tangent_velocity(r, va, vb)).clamp(-bound, bound);
                 res = res.max(rn.abs()).max(rt.abs());
             }
         }
@@ -357,7 +392,13 @@ fn apply(m: &Manifold, r: &Row, va: &mut Vel, vb: &mut Vel, dn: Real, dt: Real) 
 /// Box2D v2.4's 2-point block solver for the normal rows: solve the mixed LCP
 /// `vn = K x + b, x ≥ 0, vn ≥ 0, x·vn = 0` on the accumulated impulses by enumerating
 /// the four cases (both active, only 1, only 2, none). Returns the two Δλn.
-fn solve_block(m: &Manifold, rows: &mut [Row], k: &Block, va: &mut Vel, vb: &mut Vel) -> (Real, Real) {
+fn solve_block(
+    m: &Manifold,
+    rows: &mut [Row],
+    k: &Block,
+    va: &mut Vel,
+    vb: &mut Vel,
+) -> (Real, Real) {
     let (r1, r2) = (rows[0], rows[1]);
     let (a1, a2) = (r1.ln, r2.ln);
     // b = vn − bias − K a
@@ -417,7 +458,11 @@ impl VelocitySolver for PgsSolver {
             problem.validate()?;
         }
         if impulses.len() != problem.points.len() {
-            return Err(CoreError::LengthMismatch { what: "impulses", expected: problem.points.len(), got: impulses.len() });
+            return Err(CoreError::LengthMismatch {
+                what: "impulses",
+                expected: problem.points.len(),
+                got: impulses.len(),
+            });
         }
         if velocities.len() != problem.bodies.len() {
             return Err(CoreError::LengthMismatch {
@@ -428,8 +473,12 @@ impl VelocitySolver for PgsSolver {
         }
         self.prepare(problem, impulses);
         self.warm_start();
-        report.residual_inf.reserve(settings.max_iterations.min(4096) as usize);
-        report.residual_l2.reserve(settings.max_iterations.min(4096) as usize);
+        report
+            .residual_inf
+            .reserve(settings.max_iterations.min(4096) as usize);
+        report
+            .residual_l2
+            .reserve(settings.max_iterations.min(4096) as usize);
         let mut it = 0;
         while it < settings.max_iterations {
             let (max_d, sum_sq) = self.iterate();
@@ -438,8 +487,16 @@ impl VelocitySolver for PgsSolver {
             report.residual_inf.push(max_d);
             report.residual_l2.push(l2);
             if !max_d.is_finite() {
-                let point = self.rows.iter().position(|r| !(r.ln.is_finite() && r.lt.is_finite())).unwrap_or(0);
-                return Err(PgsError::Diverged { point, iteration: it }.into());
+                let point = self
+                    .rows
+                    .iter()
+                    .position(|r| !(r.ln.is_finite() && r.lt.is_finite()))
+                    .unwrap_or(0);
+                return Err(PgsError::Diverged {
+                    point,
+                    iteration: it,
+                }
+                .into());
             }
             if settings.converged(it, max_d, l2) {
                 report.converged = true;
@@ -467,12 +524,20 @@ mod tests {
     use deepcontact_core::{CarriedWarmStart, WorldSettings, scene};
 
     fn pile_problem() -> ContactProblem {
-        let mut world = scene::pile(12345, 100).unwrap().build(WorldSettings::default()).unwrap();
+        let mut world = scene::pile(12345, 100)
+            .unwrap()
+            .build(WorldSettings::default())
+            .unwrap();
         let (mut s, mut p) = (PgsSolver::new(), crate::PgsPositionSolver::new());
         for _ in 0..130 {
             world.step(&mut CarriedWarmStart, &mut s, &mut p).unwrap();
         }
-        world.last_problems().iter().max_by_key(|p| p.len()).unwrap().clone()
+        world
+            .last_problems()
+            .iter()
+            .max_by_key(|p| p.len())
+            .unwrap()
+            .clone()
     }
 
     #[test]
@@ -493,7 +558,11 @@ mod tests {
             }
             for (body, im, ii) in [(m.a, m.ma, m.ia), (m.b, m.mb, m.ib)] {
                 if movable(im, ii) {
-                    assert!(seen.insert(body), "body {body} twice in colour {}", colours[i]);
+                    assert!(
+                        seen.insert(body),
+                        "body {body} twice in colour {}",
+                        colours[i]
+                    );
                 }
             }
         }
@@ -502,14 +571,23 @@ mod tests {
     #[test]
     fn coloured_and_sequential_orders_reach_the_same_velocities() {
         let problem = pile_problem();
-        let settings = SolverSettings { tolerance: 1e-10, max_iterations: 100_000, ..SolverSettings::default() };
+        let settings = SolverSettings {
+            tolerance: 1e-10,
+            max_iterations: 100_000,
+            ..SolverSettings::default()
+        };
         let mut out = Vec::new();
         for ordering in [Ordering::Sequential, Ordering::Coloured] {
-            let mut solver = PgsSolver::with_settings(PgsSettings { ordering, ..PgsSettings::default() });
+            let mut solver = PgsSolver::with_settings(PgsSettings {
+                ordering,
+                ..PgsSettings::default()
+            });
             let mut imp = vec![Impulse::ZERO; problem.len()];
             let mut vel = vec![(Vector::zeros(), 0.0); problem.bodies.len()];
             let mut report = SolveReport::default();
-            solver.solve(&problem, &settings, &mut imp, &mut vel, &mut report).unwrap();
+            solver
+                .solve(&problem, &settings, &mut imp, &mut vel, &mut report)
+                .unwrap();
             assert!(report.converged);
             out.push(vel);
         }
