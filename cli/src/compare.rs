@@ -37,7 +37,7 @@ use crate::common::{CliError, SolverArgs};
 use crate::plots::{self, Figure, Panel, Scale, Series};
 
 /// The thesis's providers, the default of `--warm-starts`.
-pub const DEFAULT_WARM_STARTS: &str = "none,builtin,random,bad,copy,copy2,copy0";
+pub const DEFAULT_WARM_STARTS: &str = "none,builtin,random,bad,copy,copy2,copy0,pressure,peak";
 /// The thesis's comparison seeds, the default of `--seeds` (end exclusive: 10 seeds).
 pub const DEFAULT_SEEDS: &str = "12345..12355";
 /// Iterations shown in the residual figure (the thesis's window).
