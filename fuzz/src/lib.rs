@@ -70,8 +70,16 @@ pub fn problem_from(bytes: &mut Bytes<'_>) -> ContactProblem {
             angle: bytes.real(),
             linear_velocity: Vector::new(bytes.real(), bytes.real()),
             angular_velocity: bytes.real(),
-            inv_mass: if bytes.byte() % 4 == 0 { 0.0 } else { bytes.real() },
-            inv_inertia: if bytes.byte() % 4 == 0 { 0.0 } else { bytes.real() },
+            inv_mass: if bytes.byte() % 4 == 0 {
+                0.0
+            } else {
+                bytes.real()
+            },
+            inv_inertia: if bytes.byte() % 4 == 0 {
+                0.0
+            } else {
+                bytes.real()
+            },
         });
     }
     let n = u32::from(bodies);
@@ -89,8 +97,23 @@ pub fn problem_from(bytes: &mut Bytes<'_>) -> ContactProblem {
                     Vector::new(angle.cos(), angle.sin())
                 };
                 let point = Vector::new(bytes.real(), bytes.real());
-                let id = ContactId { body_a: a.min(b), body_b: a.max(b), feature_a: u64::from(k), feature_b: 0 };
-                p.add_point(id, a, b, point, normal, bytes.real(), bytes.real(), bytes.real(), bytes.real());
+                let id = ContactId {
+                    body_a: a.min(b),
+                    body_b: a.max(b),
+                    feature_a: u64::from(k),
+                    feature_b: 0,
+                };
+                p.add_point(
+                    id,
+                    a,
+                    b,
+                    point,
+                    normal,
+                    bytes.real(),
+                    bytes.real(),
+                    bytes.real(),
+                    bytes.real(),
+                );
             }
             8 => {
                 let (s, e) = (u32::from(bytes.byte() % 24), u32::from(bytes.byte() % 24));
@@ -110,10 +133,20 @@ pub fn problem_from(bytes: &mut Bytes<'_>) -> ContactProblem {
 fn solvers(bytes: &mut Bytes<'_>) -> Vec<Box<dyn VelocitySolver>> {
     vec![
         Box::new(PgsSolver::new()),
-        Box::new(PgsSolver::with_settings(PgsSettings { ordering: Ordering::Sequential, ..Default::default() })),
-        Box::new(PgsSolver::with_settings(PgsSettings { block_solver: false, ..Default::default() })),
+        Box::new(PgsSolver::with_settings(PgsSettings {
+            ordering: Ordering::Sequential,
+            ..Default::default()
+        })),
+        Box::new(PgsSolver::with_settings(PgsSettings {
+            block_solver: false,
+            ..Default::default()
+        })),
         Box::new(PsorSolver::with_settings(PsorSettings {
-            omega: if bytes.byte() % 4 == 0 { bytes.real() } else { 1.0 },
+            omega: if bytes.byte() % 4 == 0 {
+                bytes.real()
+            } else {
+                1.0
+            },
             ..Default::default()
         })),
         Box::new(NewtonSolver::new()),
@@ -130,8 +163,16 @@ pub fn solve_problem(data: &[u8]) {
     let valid = problem.validate();
     let settings = SolverSettings {
         max_iterations: u32::from(bytes.byte() % 40),
-        tolerance: if bytes.byte() % 2 == 0 { 1e-4 } else { bytes.real() },
-        norm: if bytes.byte() % 2 == 0 { ResidualNorm::Infinity } else { ResidualNorm::L2 },
+        tolerance: if bytes.byte() % 2 == 0 {
+            1e-4
+        } else {
+            bytes.real()
+        },
+        norm: if bytes.byte() % 2 == 0 {
+            ResidualNorm::Infinity
+        } else {
+            ResidualNorm::L2
+        },
         min_iterations: u32::from(bytes.byte() % 3),
     };
     let settings_ok = settings.validate().is_ok();
@@ -148,20 +189,39 @@ pub fn solve_problem(data: &[u8]) {
         let mut impulses = start.clone();
         let mut velocities = vec![(Vector::zeros(), 0.0); problem.bodies.len() + body_delta];
         let mut report = SolveReport::default();
-        let result = solver.solve(&problem, &settings, &mut impulses, &mut velocities, &mut report);
+        let result = solver.solve(
+            &problem,
+            &settings,
+            &mut impulses,
+            &mut velocities,
+            &mut report,
+        );
         let name = solver.name().to_string();
         if valid.is_err() {
-            assert!(result.is_err(), "{name} solved an invalid problem ({valid:?})");
+            assert!(
+                result.is_err(),
+                "{name} solved an invalid problem ({valid:?})"
+            );
         }
         if !settings_ok {
-            assert!(result.is_err(), "{name} accepted invalid settings {settings:?}");
+            assert!(
+                result.is_err(),
+                "{name} accepted invalid settings {settings:?}"
+            );
         }
         if result.is_err() || len_delta != 0 || body_delta != 0 || !start_finite {
             continue;
         }
         for (i, (imp, p)) in impulses.iter().zip(&problem.points).enumerate() {
-            assert!(imp.is_finite(), "{name}: Ok with a non-finite impulse {imp:?} at point {i}");
-            assert!(imp.normal >= 0.0, "{name}: Ok with λn = {} at point {i}", imp.normal);
+            assert!(
+                imp.is_finite(),
+                "{name}: Ok with a non-finite impulse {imp:?} at point {i}"
+            );
+            assert!(
+                imp.normal >= 0.0,
+                "{name}: Ok with λn = {} at point {i}",
+                imp.normal
+            );
             assert!(
                 imp.tangent.abs() <= p.friction * imp.normal * (1.0 + 1e-9) + Real::MIN_POSITIVE,
                 "{name}: Ok with |λt| = {} > μ λn = {} at point {i}",
@@ -175,7 +235,10 @@ pub fn solve_problem(data: &[u8]) {
                 "{name}: Ok with a non-finite velocity {v:?} of body {b}"
             );
         }
-        assert!(report.iterations >= 1 && report.iterations <= settings.max_iterations, "{name}: {report:?}");
+        assert!(
+            report.iterations >= 1 && report.iterations <= settings.max_iterations,
+            "{name}: {report:?}"
+        );
     }
 }
 
@@ -195,12 +258,47 @@ pub fn small_problem() -> ContactProblem {
     let a = p.add_body(body(0.5, -0.1, 1.0));
     let c = p.add_body(body(1.5, -0.2, 2.0));
     let up = Vector::new(0.0, 1.0);
-    let id = |a, b, f| ContactId { body_a: a, body_b: b, feature_a: f, feature_b: 0 };
+    let id = |a, b, f| ContactId {
+        body_a: a,
+        body_b: b,
+        feature_a: f,
+        feature_b: 0,
+    };
     p.begin_manifold();
-    p.add_point(id(ground, a, 0), ground, a, Vector::new(-0.5, 0.0), up, -0.01, 0.5, 0.0, 1.0);
-    p.add_point(id(ground, a, 1), ground, a, Vector::new(0.5, 0.0), up, -0.01, 0.5, 0.0, 1.0);
+    p.add_point(
+        id(ground, a, 0),
+        ground,
+        a,
+        Vector::new(-0.5, 0.0),
+        up,
+        -0.01,
+        0.5,
+        0.0,
+        1.0,
+    );
+    p.add_point(
+        id(ground, a, 1),
+        ground,
+        a,
+        Vector::new(0.5, 0.0),
+        up,
+        -0.01,
+        0.5,
+        0.0,
+        1.0,
+    );
     p.begin_manifold();
-    p.add_point(id(a, c, 2), a, c, Vector::new(0.0, 1.0), up, -0.005, 0.3, 0.0, 1.0);
+    p.add_point(
+        id(a, c, 2),
+        a,
+        c,
+        Vector::new(0.0, 1.0),
+        up,
+        -0.005,
+        0.3,
+        0.0,
+        1.0,
+    );
     p
 }
 
@@ -222,7 +320,11 @@ pub fn parse_specs(data: &[u8]) {
     if let Ok(spec) = text.parse::<Spec>() {
         // Display and FromStr round-trip.
         let shown = spec.to_string();
-        assert_eq!(shown.parse::<Spec>().as_ref(), Ok(&spec), "round trip of {text:?} via {shown:?}");
+        assert_eq!(
+            shown.parse::<Spec>().as_ref(),
+            Ok(&spec),
+            "round trip of {text:?} via {shown:?}"
+        );
     }
     let _ = split_spec_list(text);
     let _ = deepcontact_onnx::ModelCard::from_json(text, Path::new("fuzz.json"));
@@ -246,8 +348,20 @@ pub fn parse_specs(data: &[u8]) {
             let mut velocities = vec![(Vector::zeros(), 0.0); problem.bodies.len()];
             let mut report = SolveReport::default();
             let settings = SolverSettings::default();
-            if solver.solve(&problem, &settings, &mut impulses, &mut velocities, &mut report).is_ok() {
-                assert!(impulses.iter().all(Impulse::is_finite), "{text:?}: {impulses:?}");
+            if solver
+                .solve(
+                    &problem,
+                    &settings,
+                    &mut impulses,
+                    &mut velocities,
+                    &mut report,
+                )
+                .is_ok()
+            {
+                assert!(
+                    impulses.iter().all(Impulse::is_finite),
+                    "{text:?}: {impulses:?}"
+                );
             }
         }
     }

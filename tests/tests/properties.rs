@@ -67,15 +67,17 @@ fn point_gen(max_friction: Real) -> impl Strategy<Value = PointGen> {
         prop_oneof![3 => Just(0.0), 1 => 0.0..1.0],
         any::<bool>(),
     )
-        .prop_map(|(a, b, angle, offset, friction, restitution, second)| PointGen {
-            a,
-            b,
-            angle,
-            offset,
-            friction,
-            restitution,
-            second,
-        })
+        .prop_map(
+            |(a, b, angle, offset, friction, restitution, second)| PointGen {
+                a,
+                b,
+                angle,
+                offset,
+                friction,
+                restitution,
+                second,
+            },
+        )
 }
 
 /// 2–6 bodies (body 0 static), 1–8 points.
@@ -143,7 +145,12 @@ fn build_problem(bodies: &[BodyGen], points: &[PointGen]) -> ContactProblem {
     p
 }
 
-const SOLVERS: [&str; 4] = ["pgs:order=coloured", "pgs:order=sequential", "psor", "newton"];
+const SOLVERS: [&str; 4] = [
+    "pgs:order=coloured",
+    "pgs:order=sequential",
+    "psor",
+    "newton",
+];
 
 fn solver(name: &str) -> Box<dyn VelocitySolver> {
     match name {
@@ -197,7 +204,13 @@ fn solve(
     let mut velocities = vec![(Vector::zeros(), 0.0); problem.bodies.len()];
     let mut report = SolveReport::default();
     solver(name)
-        .solve(problem, settings, &mut impulses, &mut velocities, &mut report)
+        .solve(
+            problem,
+            settings,
+            &mut impulses,
+            &mut velocities,
+            &mut report,
+        )
         .unwrap_or_else(|e| panic!("{name}: {e}"));
     Outcome {
         impulses,
@@ -270,7 +283,7 @@ fn uniform_list() -> impl Strategy<Value = Vec<Real>> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 32, max_shrink_iters: 64, ..ProptestConfig::default() })]
 
     /// Every solver, from every start, under the default stop rule (cap 1000, 1e-4):
     /// admissible impulses, a consistent report.
@@ -287,14 +300,16 @@ proptest! {
     }
 
     /// Solved tightly, every solver reaches the same velocities from every start.
-    /// Friction is kept at μ ≤ 0.3 here: for large μ the frictional problem can be
-    /// non-monotone and have several solutions, velocities included.
+    /// Frictionless (μ = 0) problems: a convex QP, unique velocities. With friction
+    /// (even μ ≤ 0.3) the velocities are NOT unique in general: proptest found PGS
+    /// (coloured) converged to 1e-9 from `bad` and from `none` with velocities 0.043 m/s
+    /// apart on a 6-point problem — the Coulomb problem is not monotone.
     #[test]
     fn converged_velocities_do_not_depend_on_the_warm_start(
-        problem in problem_gen(0.3),
+        problem in problem_gen(0.0),
         u in uniform_list(),
     ) {
-        let settings = SolverSettings { max_iterations: 20_000, tolerance: 1e-10, ..Default::default() };
+        let settings = SolverSettings { max_iterations: 2_000, tolerance: 1e-9, ..Default::default() };
         let scale = problem
             .bodies
             .iter()
@@ -303,6 +318,12 @@ proptest! {
         let tol = 1e-6 * scale * (1.0 + problem.len() as Real);
         let mut reference: Option<(String, Vec<(Vector, Real)>)> = None;
         for name in SOLVERS {
+            // Newton converges in a few iterations or not at all: a small cap keeps it cheap.
+            let settings = if name == "newton" {
+                SolverSettings { max_iterations: 50, ..settings }
+            } else {
+                settings
+            };
             for (start, warm) in starts(&problem, &u) {
                 let out = solve(name, &problem, &settings, &warm);
                 check_admissible(name, start, &problem, &out)?;

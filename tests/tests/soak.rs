@@ -38,14 +38,31 @@ fn soak(spec: &str, steps: u64) {
     let mut world = build(&scene);
     let pe0 = potential_energy(&world);
     let mut warm = Registry::with_defaults().build_provider(spec).unwrap();
-    let (mut max_ke, mut min_sep, mut fallbacks, mut iterations) = (0.0 as Real, 0.0 as Real, 0, 0u64);
+    let (mut max_ke, mut min_sep): (Real, Real) = (0.0, 0.0);
+    let (mut fallbacks, mut iterations) = (0usize, 0u64);
     let start = Instant::now();
     run(&mut world, warm.as_mut(), steps, |w, r| {
-        for (i, b) in w.bodies().iter().enumerate().filter(|(_, b)| b.kind == BodyKind::Dynamic) {
-            let finite = [b.position.x, b.position.y, b.angle, b.linear_velocity.x, b.linear_velocity.y, b.angular_velocity]
-                .iter()
-                .all(|v| v.is_finite());
-            assert!(finite, "{spec} step {}: body {i} is not finite: {:?}", r.step, b.position);
+        for (i, b) in w
+            .bodies()
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| b.kind == BodyKind::Dynamic)
+        {
+            let finite = [
+                b.position.x,
+                b.position.y,
+                b.angle,
+                b.linear_velocity.x,
+                b.linear_velocity.y,
+                b.angular_velocity,
+            ]
+            .iter()
+            .all(|v| v.is_finite());
+            assert!(
+                finite,
+                "{spec} step {}: body {i} is not finite: {:?}",
+                r.step, b.position
+            );
             assert!(
                 (lo.x..=hi.x).contains(&b.position.x) && (lo.y..=hi.y).contains(&b.position.y),
                 "{spec} step {}: body {i} escaped to {:?}",
@@ -70,8 +87,14 @@ fn soak(spec: &str, steps: u64) {
         iterations as Real / steps as Real,
     );
     assert_eq!(fallbacks, 0, "{spec}: fallbacks");
-    assert!(max_ke < 1e-2 * pe0, "{spec}: kinetic energy {max_ke} after settling (PE scale {pe0})");
-    assert!(min_sep > -0.05, "{spec}: penetration {min_sep} after settling");
+    assert!(
+        max_ke < 1e-2 * pe0,
+        "{spec}: kinetic energy {max_ke} after settling (PE scale {pe0})"
+    );
+    assert!(
+        min_sep > -0.05,
+        "{spec}: penetration {min_sep} after settling"
+    );
 }
 
 #[test]
