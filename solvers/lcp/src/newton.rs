@@ -453,6 +453,10 @@ impl NewtonSolver {
                 .factorize_numeric_lu_scratch::<Real>(Par::Seq, Default::default())
                 .or(symbolic.solve_in_place_scratch::<Real>(1, Par::Seq));
             self.symbolic = Some(symbolic);
+            // faer 0.24's simplicial LU keeps the column pointers of a larger previous
+            // matrix and then fails an assertion in the solve: start from fresh numeric
+            // storage for every new pattern (it is reused across the iterations of a solve).
+            self.numeric = NumericLu::new();
             self.k_values.clear();
             self.k_values.resize(self.delassus.nnz(), 0.0);
             req

@@ -7,7 +7,9 @@ use deepcontact_core::math::{Real, Vector};
 use deepcontact_core::{
     ContactProblem, CoreError, Impulse, SolveReport, SolverSettings, VelocitySolver,
 };
-use deepcontact_lcp::{LcpError, NewtonSettings, NewtonSolver, PsorSettings, PsorSolver};
+use deepcontact_lcp::{
+    AssemblyMode, LcpError, NewtonSettings, NewtonSolver, PsorSettings, PsorSolver,
+};
 
 fn solvers() -> Vec<Box<dyn VelocitySolver>> {
     vec![Box::new(PsorSolver::new()), Box::new(NewtonSolver::new())]
@@ -241,8 +243,8 @@ fn empty_problems_take_one_iteration() {
     }
 }
 
-/// Buffers are reused: solving different problems one after the other with the same solver
-/// gives the same answers as fresh solvers.
+/// Buffers are reused: solving different problems (growing and shrinking) one after the
+/// other with the same solver, dense or sparse, gives the same answers as fresh solvers.
 #[test]
 fn reuse_between_solves() {
     let problems: Vec<_> = (0..6)
@@ -261,10 +263,22 @@ fn reuse_between_solves() {
         tolerance: 1e-10,
         ..SolverSettings::default()
     };
-    let mut reused: Vec<Box<dyn VelocitySolver>> = solvers();
+    let sparse = || -> Vec<Box<dyn VelocitySolver>> {
+        vec![
+            Box::new(PsorSolver::with_settings(PsorSettings {
+                assembly: AssemblyMode::Sparse,
+                ..PsorSettings::default()
+            })),
+            Box::new(NewtonSolver::with_settings(NewtonSettings {
+                assembly: AssemblyMode::Sparse,
+                ..NewtonSettings::default()
+            })),
+        ]
+    };
+    let mut reused: Vec<Box<dyn VelocitySolver>> = solvers().into_iter().chain(sparse()).collect();
     for p in problems.iter().chain(problems.iter().rev()) {
         let zeros = vec![Impulse::ZERO; p.points.len()];
-        for (k, fresh) in solvers().iter_mut().enumerate() {
+        for (k, fresh) in solvers().iter_mut().chain(sparse().iter_mut()).enumerate() {
             let (a, _, ra) = run(fresh.as_mut(), p, &settings, &zeros);
             let (b, _, rb) = run(reused[k].as_mut(), p, &settings, &zeros);
             assert_eq!(ra.iterations, rb.iterations);
