@@ -345,7 +345,7 @@ impl WarmStart for GridFiltered {
 /// let mut registry = deepcontact_warmstart::Registry::with_defaults();
 /// deepcontact_grid::register(&mut registry);
 /// let p = registry.build_provider("grid:inner=builtin,res=0.125").unwrap();
-/// assert_eq!(p.name(), "grid:res=0.125");
+/// assert_eq!(p.name(), "grid:res=0.125,inner=builtin");
 /// assert!(registry.build_provider("grid:h=-1,inner=builtin").is_err());
 /// assert!(registry.build_provider("grid:inner=builtin,bogus=1").is_err());
 /// ```
@@ -356,9 +356,15 @@ pub fn register(registry: &mut Registry) {
          kernel=poly6|spiky|gaussian, sigma=h/3, transfer=sph|bilinear, search=exact|kdtree, inner=copy",
         |p, reg| {
             let config = GridFilterConfig::from_params(p)?;
-            let inner = reg.build_provider(p.string("inner").unwrap_or("copy"))?;
-            let provider = GridFiltered::new(inner, config)
+            let inner_spec = p.string("inner").unwrap_or("copy");
+            let inner = reg.build_provider(inner_spec)?;
+            let mut provider = GridFiltered::new(inner, config)
                 .map_err(|e| WarmstartError::Build { spec: "grid".into(), reason: e.to_string() })?;
+            if inner_spec != "copy" {
+                let name = config.name();
+                let sep = if name.contains(':') { ',' } else { ':' };
+                provider = provider.with_name(&format!("{name}{sep}inner={inner_spec}"));
+            }
             Ok(Box::new(provider))
         },
     );

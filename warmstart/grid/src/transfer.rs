@@ -19,20 +19,25 @@
 //! Both give the same pairs up to floating-point ties at exactly `r = h` (where the
 //! poly6 and spiky weights are zero anyway), so results agree to rounding.
 //!
-//! Measured in release on the build machine (2 cores), thesis grid 61 × 61 at 0.25 m,
-//! `h = 0.5`, poly6, a pile of 100 circles settled for 200 steps (~300 contacts):
+//! Measured in release (`cargo run --release -p deepcontact-grid --example
+//! transfer_timing`; best on-CPU time per call over 31 batches, on a shared 2-core
+//! machine under a load of ~6, so absolute figures are pessimistic), thesis grid
+//! 61 × 61 at 0.25 m, `h = 0.5`, poly6, pile seed 0 of 100 circles after 200 steps
+//! (163 contact points, 1956 pairs within `h`):
 //!
-//! | operation | exact | k-d tree |
-//! |---|---|---|
-//! | P2G, 2 channels, 300 contact points | 6.8 µs | 28 µs |
-//! | SPH G2P, 2 channels, 300 contact points | 8.7 µs | 102 µs |
-//! | fused round trip ([`Transfer::round_trip`]) | 9.3 µs | 31 µs |
-//! | build the node tree (once per grid) | – | 74 µs |
+//! | operation (2 channels, 163 contact points) | exact | k-d tree |
+//! |---|---:|---:|
+//! | P2G, including zeroing the 2 × 3721 grid | 14.5 µs | 25.3 µs |
+//! | SPH G2P | 21.4 µs | 85.8 µs |
+//! | fused round trip ([`Transfer::round_trip`]) | 25.4 µs | 35.9 µs |
+//! | build the node tree (once per grid) | – | 93 µs |
+//! | bilinear G2P | 2.0 µs | – |
 //!
-//! (`cargo run --release -p deepcontact-grid --example transfer_timing` prints these.)
-//! The exact lookup wins by 3–10× and never allocates, so it is the default; the k-d
-//! tree stays available to reproduce the thesis literally and for irregular node sets.
-//!
+//! The exact lookup is 1.4–4× faster and never allocates, so it is the default. The
+//! k-d tree's P2G queries a tree built once per grid, but its SPH G2P must rebuild a
+//! tree over the particles on every call (they move) and query it for every non-zero
+//! node. It stays available to reproduce the thesis literally and for checking.
+
 //! # Buffers
 //!
 //! A [`Transfer`] keeps every buffer it needs (pair lists, per-node weight sums, a
