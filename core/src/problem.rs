@@ -110,6 +110,11 @@ impl ContactProblem {
     /// Adds a point of the manifold currently being built (call [`Self::begin_manifold`] first),
     /// deriving anchors, effective masses and the restitution bias
     /// (threshold `restitution_threshold` m/s, Box2D uses 1).
+    ///
+    /// # Panics
+    /// If `body_a` or `body_b` is not the index of a body already added with
+    /// [`Self::add_body`] (a programming error, like an out-of-range slice index).
+    /// Problems from untrusted sources should be checked with [`Self::validate`].
     #[allow(clippy::too_many_arguments)]
     pub fn add_point(
         &mut self,
