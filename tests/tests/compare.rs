@@ -63,12 +63,14 @@ fn compare_writes_every_file_and_ignores_the_thread_count() {
     assert_eq!((one.threads, two.threads), (1, 2));
     assert_eq!(
         one.warm_starts,
-        ["none", "builtin", "random", "bad", "copy", "copy2", "copy0"]
+        [
+            "none", "builtin", "random", "bad", "copy", "copy2", "copy0", "pressure", "peak"
+        ]
     );
     assert_same_numbers(&one, &two);
 
     let rows = compare::summarize(&one);
-    assert_eq!(rows.len(), 7);
+    assert_eq!(rows.len(), 9);
     let row = |name: &str| rows.iter().find(|r| r.warm_start == name).unwrap();
     assert!(
         row("none").contact_steps > 5,
@@ -101,7 +103,7 @@ fn compare_writes_every_file_and_ignores_the_thread_count() {
     let steps = read("steps.csv");
     let mut lines = steps.lines();
     assert_eq!(lines.next(), Some(STEPS_COLUMNS));
-    assert_eq!(lines.count(), 7 * 2 * 45);
+    assert_eq!(lines.count(), 9 * 2 * 45);
     for col in [
         "contacts",
         "iterations",
@@ -121,12 +123,12 @@ fn compare_writes_every_file_and_ignores_the_thread_count() {
     let curves = read("curves.csv");
     assert_eq!(curves.lines().next(), Some(CURVES_COLUMNS));
     assert!(
-        curves.lines().count() > 7,
+        curves.lines().count() > 9,
         "one row per iteration at least for each warm start"
     );
     let summary = read("summary.csv");
     assert_eq!(summary.lines().next(), Some(SUMMARY_COLUMNS));
-    assert_eq!(summary.lines().count(), 1 + 7);
+    assert_eq!(summary.lines().count(), 1 + 9);
     let md = read("summary.md");
     assert_eq!(md, outputs.summary_md);
     for col in [
@@ -151,7 +153,7 @@ fn compare_writes_every_file_and_ignores_the_thread_count() {
         assert!(md.contains(col), "summary.md has {col}");
     }
     let json = read("summary.json");
-    assert_eq!(json.matches("\"warm_start\":").count(), 7, "{json}");
+    assert_eq!(json.matches("\"warm_start\":").count(), 9, "{json}");
     assert!(json.contains("\"seeds\": [") && json.contains("\"copy0\""));
     let png = std::fs::read(dir.join("figures/residual.png")).unwrap();
     assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
