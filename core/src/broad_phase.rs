@@ -28,9 +28,17 @@ impl Aabb {
 #[derive(Debug, Default, Clone)]
 pub struct BroadPhase {
     aabbs: Vec<Aabb>,
+    /// Body kinds, packed: the pair tests read them for random bodies, and the `Body`
+    /// structs of a large world do not fit in the cache.
+    kinds: Vec<BodyKind>,
+    extents: Vec<Real>,
     entries: Vec<(u64, u32)>,
     large: Vec<u32>,
     pairs: Vec<(u32, u32)>,
+    /// Counting-sort scratch: bucket offsets and the sorted copy.
+    counts: Vec<u32>,
+    sorted_entries: Vec<(u64, u32)>,
+    sorted_pairs: Vec<(u32, u32)>,
 }
 
 #[inline]
@@ -54,6 +62,8 @@ impl BroadPhase {
     /// overlapping AABBs (enlarged by `margin`).
     pub fn find_pairs(&mut self, bodies: &[Body], margin: Real) -> &[(u32, u32)] {
         self.aabbs.clear();
+        self.kinds.clear();
+        self.kinds.extend(bodies.iter().map(|b| b.kind));
         for b in bodies {
             let aabb = b.shape.compute_aabb(&parry_pose(&b.origin(), b.angle));
             let m = Vector::new(margin, margin);
@@ -67,7 +77,9 @@ impl BroadPhase {
             return &self.pairs;
         }
         // Cell size: twice the median extent, so a typical body covers 1-4 cells.
-        let mut extents: Vec<Real> = self.aabbs.iter().map(|a| (a.max - a.min).max()).collect();
+        let extents = &mut self.extents;
+        extents.clear();
+        extents.extend(self.aabbs.iter().map(|a| (a.max - a.min).max()));
         let mid = extents.len() / 2;
         extents.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
         let cell = (2.0 * extents[mid]).max(1e-3);
@@ -75,6 +87,8 @@ impl BroadPhase {
 
         self.entries.clear();
         self.large.clear();
+        // Bounding box of the occupied cells, for the counting sort.
+        let (mut cx0, mut cy0, mut cx1, mut cy1) = (i64::MAX, i64::MAX, i64::MIN, i64::MIN);
         for (i, a) in self.aabbs.iter().enumerate() {
             let (x0, y0) = (
                 (a.min.x * inv).floor() as i64,
@@ -88,18 +102,19 @@ impl BroadPhase {
                 self.large.push(i as u32);
                 continue;
             }
+            (cx0, cy0, cx1, cy1) = (cx0.min(x0), cy0.min(y0), cx1.max(x1), cy1.max(y1));
             for ix in x0..=x1 {
                 for iy in y0..=y1 {
                     self.entries.push((cell_key(ix, iy), i as u32));
                 }
             }
         }
-        self.entries.sort_unstable();
+        self.sort_entries((cx0, cy0), (cx1, cy1));
 
-        let movable = |i: u32| bodies[i as usize].kind != BodyKind::Static;
+        let kinds = &self.kinds;
+        let movable = |i: u32| kinds[i as usize] != BodyKind::Static;
         let dynamic_pair = |a: u32, b: u32| {
-            bodies[a as usize].kind == BodyKind::Dynamic
-                || bodies[b as usize].kind == BodyKind::Dynamic
+            kinds[a as usize] == BodyKind::Dynamic || kinds[b as usize] == BodyKind::Dynamic
         };
         let mut start = 0;
         while start < self.entries.len() {
@@ -143,8 +158,144 @@ impl BroadPhase {
                 }
             }
         }
-        self.pairs.sort_unstable();
+        self.sort_pairs(bodies.len());
         self.pairs.dedup();
         &self.pairs
+    }
+
+    /// Sorts the `(cell key, body)` entries into the order `sort_unstable` gives (key, then
+    /// body), in linear time: a counting sort over the bounding box `lo..=hi` of the occupied
+    /// cells, stable, and the entries were pushed in body order. Falls back to
+    /// `sort_unstable` when that box is much larger than the entries (a body far away).
+    fn sort_entries(&mut self, lo: (i64, i64), hi: (i64, i64)) {
+        let n = self.entries.len();
+        let side = |a: i64, b: i64| {
+            b.checked_sub(a)
+                .and_then(|d| d.checked_add(1))
+                .and_then(|d| usize::try_from(d).ok())
+        };
+        let cells = match (side(lo.0, hi.0), side(lo.1, hi.1)) {
+            (Some(w), Some(h)) => w.checked_mul(h).map(|c| (c, h)),
+            _ => None,
+        };
+        let Some((cells, h)) = cells.filter(|&(c, _)| n > 0 && c <= 4 * n + 1024) else {
+            self.entries.sort_unstable();
+            return;
+        };
+        // Inverse of `cell_key`, then the cell's index in the box (row-major in x, as the key).
+        let dense = |key: u64| {
+            let ix = (key >> 32) as i64 - (1 << 31);
+            let iy = (key & 0xffff_ffff) as i64 - (1 << 31);
+            (ix - lo.0) as usize * h + (iy - lo.1) as usize
+        };
+        let counts = &mut self.counts;
+        counts.clear();
+        counts.resize(cells + 1, 0);
+        for &(key, _) in &self.entries {
+            counts[dense(key) + 1] += 1;
+        }
+        for c in 1..counts.len() {
+            counts[c] += counts[c - 1];
+        }
+        self.sorted_entries.clear();
+        self.sorted_entries.resize(n, (0, 0));
+        for &e in &self.entries {
+            let d = dense(e.0);
+            self.sorted_entries[counts[d] as usize] = e;
+            counts[d] += 1;
+        }
+        std::mem::swap(&mut self.entries, &mut self.sorted_entries);
+    }
+
+    /// Sorts the pairs (bodies `< bodies`) lexicographically in linear time: a stable
+    /// counting sort by the second body, then by the first (LSD radix). Same order as
+    /// `sort_unstable` (equal pairs are indistinguishable).
+    fn sort_pairs(&mut self, bodies: usize) {
+        if self.pairs.len() < 64 {
+            self.pairs.sort_unstable();
+            return;
+        }
+        let counts = &mut self.counts;
+        let (src, dst) = (&mut self.pairs, &mut self.sorted_pairs);
+        for pass in 0..2 {
+            let key = |p: &(u32, u32)| {
+                if pass == 0 {
+                    p.1 as usize
+                } else {
+                    p.0 as usize
+                }
+            };
+            counts.clear();
+            counts.resize(bodies + 1, 0);
+            for p in src.iter() {
+                counts[key(p) + 1] += 1;
+            }
+            for c in 1..counts.len() {
+                counts[c] += counts[c - 1];
+            }
+            dst.clear();
+            dst.resize(src.len(), (0, 0));
+            for &p in src.iter() {
+                let k = key(&p);
+                dst[counts[k] as usize] = p;
+                counts[k] += 1;
+            }
+            std::mem::swap(src, dst);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::body::BodyDesc;
+    use crate::rng::PortableRng;
+    use crate::scene;
+    use crate::shape::ShapeDesc;
+    use crate::world::{World, WorldSettings};
+
+    /// All overlapping pairs with a dynamic body, by brute force, sorted.
+    fn brute_force(bp: &BroadPhase, bodies: &[Body]) -> Vec<(u32, u32)> {
+        let mut pairs = Vec::new();
+        for a in 0..bodies.len() {
+            for b in a + 1..bodies.len() {
+                let dynamic =
+                    bodies[a].kind == BodyKind::Dynamic || bodies[b].kind == BodyKind::Dynamic;
+                if dynamic && bp.aabbs()[a].overlaps(&bp.aabbs()[b]) {
+                    pairs.push((a as u32, b as u32));
+                }
+            }
+        }
+        pairs
+    }
+
+    #[test]
+    fn counting_sorts_find_every_pair_once_in_order() {
+        // A pile (walls are large bodies), plus one far-away body that makes the cell box
+        // huge (the entries fall back to `sort_unstable`).
+        for far in [false, true] {
+            let mut descs = scene::pile(3, 400).unwrap().bodies;
+            let mut rng = PortableRng::new(9);
+            for _ in 0..200 {
+                let p = Vector::new(rng.uniform_range(1.0, 29.0), rng.uniform_range(1.0, 29.0));
+                descs.push(BodyDesc::dynamic(
+                    ShapeDesc::Ball {
+                        radius: rng.uniform_range(0.2, 0.9),
+                    },
+                    p,
+                ));
+            }
+            if far {
+                descs.push(BodyDesc::dynamic(
+                    ShapeDesc::Ball { radius: 0.5 },
+                    Vector::new(1e7, -3e6),
+                ));
+            }
+            let world = World::with_bodies(WorldSettings::default(), &descs).unwrap();
+            let mut bp = BroadPhase::new();
+            let pairs = bp.find_pairs(world.bodies(), 0.01).to_vec();
+            assert!(pairs.len() > 500);
+            assert_eq!(pairs, brute_force(&bp, world.bodies()));
+        }
     }
 }

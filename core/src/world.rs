@@ -8,7 +8,7 @@ use crate::contact::{ContactId, Impulse};
 use crate::error::CoreError;
 use crate::island::Islands;
 use crate::math::{Real, Vector};
-use crate::narrow_phase::NarrowPhase;
+use crate::narrow_phase::{NarrowPhase, RawContact};
 use crate::problem::{ContactProblem, ProblemBody};
 use crate::report::{SolveReport, StepReport};
 use crate::solver::{PositionSettings, PositionSolver, SolverSettings, VelocitySolver};
@@ -107,11 +107,36 @@ struct Persistent {
 }
 
 impl Persistent {
-    fn lookup(&self, id: &ContactId) -> Option<Impulse> {
-        self.impulses
-            .binary_search_by(|(k, _)| k.cmp(id))
-            .ok()
-            .map(|i| self.impulses[i].1)
+    /// For every contact (in the narrow phase's order), the impulse of the previous step's
+    /// contact with the same id, if any: `out[i]` for `contacts[i]`.
+    ///
+    /// The narrow phase emits contacts in ascending body-pair order and `impulses` is sorted
+    /// by id (pair first), so one forward cursor finds every match: linear in the contacts,
+    /// where a binary search per point was O(n log n) (≈ 4 % of a 10 000-body step). A
+    /// contact out of pair order (never produced today) re-seeks the cursor with a binary
+    /// search, so the result never depends on the order.
+    fn match_contacts(&self, contacts: &[RawContact], out: &mut Vec<Option<Impulse>>) {
+        let imp = &self.impulses;
+        let pair_of = |id: &ContactId| (id.body_a, id.body_b);
+        out.clear();
+        let mut j = 0;
+        let mut prev = (0, 0);
+        for c in contacts {
+            let pair = pair_of(&c.id);
+            if pair < prev {
+                j = imp.partition_point(|(k, _)| pair_of(k) < pair);
+            }
+            prev = pair;
+            while j < imp.len() && pair_of(&imp[j].0) < pair {
+                j += 1;
+            }
+            let found = imp[j..]
+                .iter()
+                .take_while(|(k, _)| pair_of(k) == pair)
+                .find(|(k, _)| *k == c.id)
+                .map(|(_, impulse)| *impulse);
+            out.push(found);
+        }
     }
 }
 
@@ -124,6 +149,8 @@ struct Scratch {
     point_source: Vec<Vec<u32>>,
     carried: Vec<Impulse>,
     persisted: Vec<bool>,
+    /// Per narrow-phase contact: the impulse carried from the previous step, if its id matched.
+    matched: Vec<Option<Impulse>>,
     warm: Vec<Impulse>,
     impulses: Vec<Impulse>,
     velocities: Vec<(Vector, Real)>,
@@ -372,6 +399,8 @@ impl World {
         s.solved.clear();
         s.solved.resize(self.narrow.contacts.len(), Impulse::ZERO);
 
+        self.persistent
+            .match_contacts(&self.narrow.contacts, &mut s.matched);
         let (mut se_n, mut se_t) = (0.0, 0.0);
         let mut outcome = Ok(());
         for k in 0..n_islands {
@@ -380,8 +409,8 @@ impl World {
             // Impulses carried over from the previous step by contact id.
             s.carried.clear();
             s.persisted.clear();
-            for p in &s.problems[k].points {
-                match self.persistent.lookup(&p.id) {
+            for &c in &s.point_source[k] {
+                match s.matched[c as usize] {
                     Some(imp) => {
                         s.carried.push(imp);
                         s.persisted.push(true);
