@@ -79,6 +79,30 @@ impl SolverSettings {
     }
 }
 
+/// Checks the buffers handed to [`VelocitySolver::solve`]: one impulse per point and one
+/// velocity per body of `problem`. Solvers call it before touching the buffers.
+pub fn check_solve_buffers(
+    problem: &ContactProblem,
+    impulses: &[Impulse],
+    velocities: &[(Vector, Real)],
+) -> Result<(), CoreError> {
+    if impulses.len() != problem.points.len() {
+        return Err(CoreError::LengthMismatch {
+            what: "impulses",
+            expected: problem.points.len(),
+            got: impulses.len(),
+        });
+    }
+    if velocities.len() != problem.bodies.len() {
+        return Err(CoreError::LengthMismatch {
+            what: "velocities",
+            expected: problem.bodies.len(),
+            got: velocities.len(),
+        });
+    }
+    Ok(())
+}
+
 /// Solves the velocity-level contact problem of one island.
 ///
 /// The solver starts from `impulses` (the warm start, one per point), applies them to the

@@ -457,20 +457,7 @@ impl VelocitySolver for PgsSolver {
         if self.settings.validate {
             problem.validate()?;
         }
-        if impulses.len() != problem.points.len() {
-            return Err(CoreError::LengthMismatch {
-                what: "impulses",
-                expected: problem.points.len(),
-                got: impulses.len(),
-            });
-        }
-        if velocities.len() != problem.bodies.len() {
-            return Err(CoreError::LengthMismatch {
-                what: "velocities",
-                expected: problem.bodies.len(),
-                got: velocities.len(),
-            });
-        }
+        deepcontact_core::solver::check_solve_buffers(problem, impulses, velocities)?;
         self.prepare(problem, impulses);
         self.warm_start();
         report
