@@ -175,6 +175,20 @@ fn run(
     Ok(t)
 }
 
+/// rapier2d's figures for one pile.
+struct Peer {
+    /// Mean ms per step.
+    ms: f64,
+    /// Fastest step, ms.
+    min_ms: f64,
+    /// Mean contact points handed to the solver.
+    contacts: f64,
+    /// Velocity resolution (all substeps) in ns per contact point per solver iteration.
+    solver_ns: f64,
+    /// Collision detection, ms per step.
+    collision_ms: f64,
+}
+
 /// Phases of one step timed one by one on a settled world, through the same public pieces
 /// that `World::step` runs (seconds per step, averaged over `reps`).
 #[derive(Default, Clone, Copy)]
@@ -334,6 +348,7 @@ fn main() -> Result<(), String> {
                 }
             }
             let (mut wall, mut wall_min, mut contacts) = (0.0, f64::INFINITY, 0u64);
+            let (mut solver, mut collision) = (0.0, 0.0);
             for _ in 0..m {
                 let t0 = Instant::now();
                 peer.step();
@@ -341,17 +356,21 @@ fn main() -> Result<(), String> {
                 wall += dt;
                 wall_min = wall_min.min(dt);
                 contacts += peer.contacts() as u64;
+                solver += peer.solver_seconds();
+                collision += peer.collision_seconds();
             }
             eprintln!(
                 "n={n}: kinetic energy after the measured steps: deepcontact {:.3} J, rapier2d {:.3} J",
                 world.kinetic_energy(),
                 peer.kinetic_energy()
             );
-            Some((
-                wall / m as f64 * 1e3,
-                wall_min * 1e3,
-                contacts as f64 / m as f64,
-            ))
+            Some(Peer {
+                ms: wall / m as f64 * 1e3,
+                min_ms: wall_min * 1e3,
+                contacts: contacts as f64 / m as f64,
+                solver_ns: solver / (contacts.max(1) as f64 * f64::from(o.iterations)) * 1e9,
+                collision_ms: collision / m as f64 * 1e3,
+            })
         } else {
             None
         };
@@ -382,11 +401,16 @@ fn main() -> Result<(), String> {
             })
             .unwrap_or(("–".into(), "–".into()));
         let (r_ms, r_c, ratio) = r
-            .map(|(ms, min, c)| {
+            .as_ref()
+            .map(|p| {
                 (
-                    format!("{ms:.2} ({min:.2})"),
-                    format!("{c:.0}"),
-                    format!("{:.2} ({:.2})", f.ms(f.wall) / ms, f.wall_min * 1e3 / min),
+                    format!("{:.2} ({:.2})", p.ms, p.min_ms),
+                    format!("{:.0}", p.contacts),
+                    format!(
+                        "{:.2} ({:.2})",
+                        f.ms(f.wall) / p.ms,
+                        f.wall_min * 1e3 / p.min_ms
+                    ),
                 )
             })
             .unwrap_or(("–".into(), "–".into(), "–".into()));
@@ -427,6 +451,33 @@ fn main() -> Result<(), String> {
             ph.position_iterations,
             f.wall_min * 1e3,
         );
+    }
+
+    if o.rapier {
+        println!();
+        println!(
+            "Solver only, ns per contact point per iteration at {it} iterations (ours: PGS velocity solve; \
+             rapier2d: its whole velocity resolution, each iteration = one substep with one PGS and one \
+             stabilisation pass plus integration); collision detection in ms per step:",
+            it = o.iterations
+        );
+        println!();
+        println!(
+            "| bodies | ours ns/contact/iter | rapier2d ns/contact/iter | ratio | ours broad+narrow ms | rapier2d collision ms |"
+        );
+        println!("|---:|---:|---:|---:|---:|---:|");
+        for (n, _, f, _, r, ph) in &rows {
+            if let Some(p) = r {
+                let ns = f.solve / f.point_iterations.max(1) as f64 * 1e9;
+                println!(
+                    "| {n} | {ns:.1} | {:.1} | {:.2} | {:.2} | {:.2} |",
+                    p.solver_ns,
+                    ns / p.solver_ns,
+                    (ph.broad + ph.narrow) * 1e3,
+                    p.collision_ms
+                );
+            }
+        }
     }
     Ok(())
 }

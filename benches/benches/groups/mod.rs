@@ -35,13 +35,22 @@ pub fn sizes() -> Vec<usize> {
     }
 }
 
+/// Pile sizes of the `peer` group: `DEEPCONTACT_BENCH_SIZES` if set, else 100 and 1 000 (the
+/// 10 000-body comparison is in `examples/scaling.rs`: settling both engines takes a minute).
+pub fn peer_sizes() -> Vec<usize> {
+    match std::env::var("DEEPCONTACT_BENCH_SIZES") {
+        Ok(v) if !v.trim().is_empty() => sizes(),
+        _ => vec![100, 1_000],
+    }
+}
+
 /// Steps to settle a pile of `n` bodies before recording it for the solver benchmarks:
 /// the thesis's 250 steps for 100 bodies, 250 × (n / 100)^¼ beyond (a taller pile falls longer).
 pub fn settle_steps(n: usize) -> u64 {
     (250.0 * (n as f64 / 100.0).max(1.0).powf(0.25)).round() as u64
 }
 
-/// A settled pile of `n` bodies (seed 12345, settled with [`settle_world`]`(100)`), its last
+/// A settled pile of `n` bodies (seed 12345, settled with [`settle_world`]`(50)`), its last
 /// step recorded; computed once per size and process.
 pub fn settled(n: usize) -> &'static Snapshot {
     static CELL: OnceLock<std::sync::Mutex<Vec<(usize, &'static Snapshot)>>> = OnceLock::new();

@@ -94,6 +94,29 @@ impl RapierPile {
             .sum()
     }
 
+    /// Seconds of the last step in rapier's velocity resolution (all substeps: solver
+    /// iterations, stabilisation, integration, write-back; rapier's `profiler` counters).
+    pub fn solver_seconds(&self) -> f64 {
+        self.world
+            .physics_pipeline
+            .counters
+            .solver
+            .velocity_resolution_time
+            .time()
+            .as_secs_f64()
+    }
+
+    /// Seconds of the last step in rapier's collision detection (broad and narrow phase).
+    pub fn collision_seconds(&self) -> f64 {
+        self.world
+            .physics_pipeline
+            .counters
+            .stages
+            .collision_detection_time
+            .time()
+            .as_secs_f64()
+    }
+
     /// Total kinetic energy of the dynamic bodies (for a sanity check against ours).
     pub fn kinetic_energy(&self) -> f64 {
         self.world
