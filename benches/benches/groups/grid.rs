@@ -11,6 +11,9 @@ use super::thesis_snapshots;
 
 /// The `grid` group.
 pub fn bench(c: &mut Criterion) {
+    if !super::wanted("grid") {
+        return;
+    }
     let snap = thesis_snapshots().last().expect("recorded steps");
     let mut positions: Vec<Vector> = Vec::new();
     let mut values: Vec<f64> = Vec::new();

@@ -12,6 +12,21 @@ use std::sync::OnceLock;
 use deepcontact_benches::{RECORD_STEPS, SEED, SIZES, Snapshot, record_step, settle_world};
 use deepcontact_core::WorldSettings;
 
+/// Top-level group names, as the first segment of every benchmark id.
+const GROUPS: [&str; 5] = ["providers", "solvers", "grid", "onnx", "peer"];
+
+/// Whether `group` may be selected by the command line's criterion filter: a command-line
+/// word naming a group (e.g. `cargo bench -- peer`, `-- solvers/iteration`) selects only the
+/// groups it names, so the others skip their setup (settling a 10 000-body pile takes ~20 s);
+/// without such a word every group runs.
+pub fn wanted(group: &str) -> bool {
+    let named: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with('-') && GROUPS.iter().any(|g| a.contains(g)))
+        .collect();
+    named.is_empty() || named.iter().any(|a| a.contains(group))
+}
+
 /// The 100-body thesis pile (seed 12345, thesis settings) recorded at [`RECORD_STEPS`].
 pub fn thesis_snapshots() -> &'static [Snapshot] {
     static CELL: OnceLock<Vec<Snapshot>> = OnceLock::new();

@@ -16,6 +16,9 @@ use super::thesis_snapshots;
 
 /// The `onnx` group.
 pub fn bench(c: &mut Criterion) {
+    if !super::wanted("onnx") {
+        return;
+    }
     let snap = thesis_snapshots().last().expect("recorded steps");
     let layout = GridLayout::thesis();
     let mut feats = GridFeatures::new(layout.clone()).expect("thesis layout");

@@ -26,6 +26,9 @@ const SOLVER_STEPS: u32 = 20;
 
 /// The `peer` group.
 pub fn bench(c: &mut Criterion) {
+    if !super::wanted("peer") {
+        return;
+    }
     let mut group = c.benchmark_group("peer");
     group.sampling_mode(SamplingMode::Flat);
     for n in peer_sizes() {
