@@ -25,6 +25,14 @@ pub enum CoreError {
         /// What is wrong with it.
         reason: &'static str,
     },
+    /// A scene name that [`crate::scene::by_name`] does not know.
+    #[error("unknown scene `{name}` (known: {known})")]
+    UnknownScene {
+        /// The name asked for.
+        name: String,
+        /// The names accepted, comma separated.
+        known: String,
+    },
     /// A world or solver setting is out of range.
     #[error("invalid setting {name} = {value}: {reason}")]
     InvalidSetting {

@@ -93,6 +93,14 @@ pub fn walls(side: Real, material: Material) -> Vec<BodyDesc> {
 /// `params.bodies != 100` the box and the spread are scaled by `sqrt(bodies / 100)` so
 /// the density is kept. The walls are bodies 0-3, the circles follow.
 pub fn pile_with(seed: u64, params: &PileParams) -> Result<Scene, CoreError> {
+    if params.bodies == 0 {
+        // The box is scaled by sqrt(bodies / 100): an empty pile has no box.
+        return Err(CoreError::InvalidSetting {
+            name: "pile.bodies",
+            value: 0.0,
+            reason: "must be at least 1",
+        });
+    }
     let scale = (params.bodies as Real / 100.0).sqrt();
     let side = params.box_side * scale;
     let sigma = params.sigma * scale;
@@ -291,10 +299,9 @@ pub fn by_name(name: &str, seed: u64, bodies: usize) -> Result<Scene, CoreError>
         "pyramid" => Ok(pyramid(small)),
         "stack" => Ok(stack(small)),
         "resting_ball" => Ok(resting_ball()),
-        _ => Err(CoreError::InvalidSetting {
-            name: "scene",
-            value: Real::NAN,
-            reason: "unknown scene name",
+        _ => Err(CoreError::UnknownScene {
+            name: name.to_string(),
+            known: SCENES.join(", "),
         }),
     }
 }

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import copy
+import hashlib
 import json
 import platform
 import sys
@@ -222,6 +223,8 @@ def main() -> None:
         "name": args.model,
         "architecture": " ".join((MODELS[args.model].__doc__ or "").split()),
         "parameters": parameter_count(model),
+        # Binds the card to this exact file: the Rust loader refuses another model with it.
+        "model_sha256": hashlib.sha256(onnx_path.read_bytes()).hexdigest(),
         "grid_layout": header["grid_layout"],
         "input": {"name": "grids", "shape": [1, 6, 61, 61], "channels": header["input_channels"]},
         "output": {"name": "impulses", "shape": [1, 2, 61, 61], "channels": header["output_channels"]},

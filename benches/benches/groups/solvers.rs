@@ -5,11 +5,15 @@
 //!   and at most 1 000 bodies); the throughput is
 //!   point-iterations, so criterion's element time is the cost per contact point per iteration;
 //! * `solvers/solve` — the thesis stop rule (∞-norm < 1e-4, cap 1000; Newton: cap 50, at most
-//!   1 000 bodies); throughput in contact points.
+//!   1 000 bodies); throughput in contact points;
+//! * `solvers/assembly` — the LCP solvers' set-up: `J`, `M⁻¹` and `W = J M⁻¹ Jᵀ` with `q` for
+//!   every island of the step (dense up to 128 rows, sparse above, as the solvers choose),
+//!   buffers reused across iterations; throughput in contact points.
 
 use criterion::{BenchmarkId, Criterion, SamplingMode, Throughput};
 use deepcontact_benches::{SOLVERS, SolveScratch, fixed_iterations, registry};
 use deepcontact_core::SolverSettings;
+use deepcontact_lcp::{AssemblyMode, DEFAULT_DENSE_THRESHOLD, Delassus};
 
 use super::{settled, sizes};
 
@@ -44,6 +48,7 @@ pub fn bench(c: &mut Criterion) {
     }
     let registry = registry();
     let sizes = sizes();
+    assembly(c, &sizes);
     for (name, thesis) in [("solvers/iteration", false), ("solvers/solve", true)] {
         let mut group = c.benchmark_group(name);
         group.sampling_mode(SamplingMode::Flat);
@@ -97,4 +102,27 @@ pub fn bench(c: &mut Criterion) {
         }
         group.finish();
     }
+}
+
+/// The `solvers/assembly` group: the Delassus assembly of every island of a settled pile.
+fn assembly(c: &mut Criterion, sizes: &[usize]) {
+    let mut group = c.benchmark_group("solvers/assembly");
+    group.sampling_mode(SamplingMode::Flat);
+    for &n in sizes {
+        let snap = settled(n);
+        let mut delassus = Delassus::new();
+        let assemble_all = |delassus: &mut Delassus| {
+            for island in &snap.islands {
+                delassus
+                    .assemble(&island.problem, AssemblyMode::Auto, DEFAULT_DENSE_THRESHOLD)
+                    .expect("assembly of a recorded pile problem");
+            }
+        };
+        assemble_all(&mut delassus);
+        group.throughput(Throughput::Elements(snap.contacts() as u64));
+        group.bench_function(BenchmarkId::new("delassus", n), |b| {
+            b.iter(|| assemble_all(&mut delassus))
+        });
+    }
+    group.finish();
 }

@@ -8,19 +8,9 @@ use deepcontact_core::{CoreError, Real};
 /// [`CoreError`] with [`LcpError::into_core`] (or `From`, which names the solver `"lcp"`).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum LcpError {
-    /// The problem or the stop rule failed validation.
+    /// The problem, the stop rule or the buffers handed to a solver failed validation.
     #[error("invalid problem: {0}")]
     InvalidProblem(#[from] CoreError),
-    /// A buffer handed to a solver has the wrong length.
-    #[error("size mismatch for {what}: expected {expected}, got {got}")]
-    SizeMismatch {
-        /// Which buffer (`"impulses"`, `"velocities"`, ...).
-        what: &'static str,
-        /// Expected length.
-        expected: usize,
-        /// Actual length.
-        got: usize,
-    },
     /// A solver setting is out of range.
     #[error("invalid setting {name} = {value}: {reason}")]
     InvalidSetting {
@@ -91,15 +81,6 @@ impl LcpError {
     pub fn into_core(self, solver: &str) -> CoreError {
         match self {
             LcpError::InvalidProblem(e) => e,
-            LcpError::SizeMismatch {
-                what,
-                expected,
-                got,
-            } => CoreError::LengthMismatch {
-                what,
-                expected,
-                got,
-            },
             LcpError::InvalidSetting {
                 name,
                 value,
@@ -129,19 +110,12 @@ mod tests {
 
     #[test]
     fn conversion_into_core_errors_keeps_the_data() {
-        let e = LcpError::SizeMismatch {
+        let lengths = CoreError::LengthMismatch {
             what: "impulses",
             expected: 3,
             got: 2,
         };
-        assert_eq!(
-            e.into_core("psor"),
-            CoreError::LengthMismatch {
-                what: "impulses",
-                expected: 3,
-                got: 2
-            }
-        );
+        assert_eq!(LcpError::from(lengths.clone()).into_core("psor"), lengths);
         let e = LcpError::InvalidSetting {
             name: "omega",
             value: 2.5,

@@ -38,29 +38,3 @@ pub use exact::{
 };
 pub use newton::{NewtonSettings, NewtonSolver, NewtonStats};
 pub use psor::{PsorSettings, PsorSolver};
-
-use deepcontact_core::math::{Real, Vector};
-use deepcontact_core::{ContactProblem, Impulse};
-
-/// Checks the lengths of the impulse and velocity buffers against the problem.
-fn check_lengths(
-    problem: &ContactProblem,
-    impulses: &[Impulse],
-    velocities: &[(Vector, Real)],
-) -> Result<(), LcpError> {
-    if impulses.len() != problem.points.len() {
-        return Err(LcpError::SizeMismatch {
-            what: "impulses",
-            expected: problem.points.len(),
-            got: impulses.len(),
-        });
-    }
-    if velocities.len() != problem.bodies.len() {
-        return Err(LcpError::SizeMismatch {
-            what: "velocities",
-            expected: problem.bodies.len(),
-            got: velocities.len(),
-        });
-    }
-    Ok(())
-}

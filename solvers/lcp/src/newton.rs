@@ -12,11 +12,12 @@ use faer::sparse::SparseColMatRef;
 use faer::sparse::linalg::lu::{NumericLu, SymbolicLu, factorize_symbolic_lu};
 use faer::{Conj, Mat, MatMut, Par};
 
+use crate::LcpError;
 use crate::assembly::{
     AssemblyMode, DEFAULT_DENSE_THRESHOLD, Delassus, impulses_to_rows, rows_to_impulses, sor_sweep,
     sweep_order,
 };
-use crate::{LcpError, check_lengths};
+use deepcontact_core::solver::check_solve_buffers;
 
 /// Relative regularisation a Newton direction is recomputed with (at least) after its line
 /// search failed.
@@ -298,7 +299,7 @@ impl NewtonSolver {
         if self.settings.validate {
             problem.validate()?;
         }
-        check_lengths(problem, impulses, velocities)?;
+        check_solve_buffers(problem, impulses, velocities)?;
         self.delassus.assemble(
             problem,
             self.settings.assembly,

@@ -7,11 +7,12 @@ use deepcontact_core::{
     ContactProblem, CoreError, Impulse, SolveReport, SolverSettings, VelocitySolver,
 };
 
+use crate::LcpError;
 use crate::assembly::{
     AssemblyMode, DEFAULT_DENSE_THRESHOLD, Delassus, impulses_to_rows, rows_to_impulses, sor_sweep,
     sweep_order,
 };
-use crate::{LcpError, check_lengths};
+use deepcontact_core::solver::check_solve_buffers;
 
 /// Options of [`PsorSolver`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -107,7 +108,7 @@ impl PsorSolver {
         if self.settings.validate {
             problem.validate()?;
         }
-        check_lengths(problem, impulses, velocities)?;
+        check_solve_buffers(problem, impulses, velocities)?;
         self.delassus.assemble(
             problem,
             self.settings.assembly,

@@ -43,6 +43,12 @@ pub struct ModelCard {
     /// Number of trainable parameters.
     #[serde(default)]
     pub parameters: u64,
+    /// SHA-256 of the `.onnx` file the card describes, lower-case hex (default: absent, not
+    /// checked). When present, loading a different model file with this card is an error
+    /// ([`OnnxError::ModelHashMismatch`]): cards of models with the same shapes are otherwise
+    /// interchangeable.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model_sha256: Option<String>,
     /// The grid layout the model was trained on (the grid crate's layout JSON).
     pub grid_layout: Value,
     /// The model's input.
@@ -128,6 +134,24 @@ impl ModelCard {
             },
         })?;
         Self::from_json(&text, path)
+    }
+
+    /// Checks that `bytes` (the model file `path`) are the file the card was written for, when
+    /// the card records its SHA-256.
+    pub fn check_model_bytes(&self, bytes: &[u8], path: &Path) -> Result<(), OnnxError> {
+        let Some(expected) = &self.model_sha256 else {
+            return Ok(());
+        };
+        let found = sha256_hex(bytes);
+        if !found.eq_ignore_ascii_case(expected.trim()) {
+            return Err(OnnxError::ModelHashMismatch {
+                path: path.to_path_buf(),
+                card: self.name.clone(),
+                expected: expected.clone(),
+                found,
+            });
+        }
+        Ok(())
     }
 
     /// Checks the card against this build's layout: channel names and order, shapes, and the
@@ -237,6 +261,15 @@ pub(crate) fn first_difference(
         (e, f) if e == f => None,
         _ => differ(),
     }
+}
+
+/// Lower-case hex SHA-256 of `bytes` (the `model_sha256` of a card).
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    use sha2::Digest;
+    sha2::Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
 }
 
 #[cfg(test)]

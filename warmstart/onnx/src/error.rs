@@ -14,6 +14,20 @@ pub enum OnnxError {
         /// The path that was looked up.
         path: PathBuf,
     },
+    /// The model file is not the one its card was written for (SHA-256 differs).
+    #[error(
+        "model {path} is not the model of card `{card}`: SHA-256 {found} differs from the card's {expected}"
+    )]
+    ModelHashMismatch {
+        /// The model file.
+        path: PathBuf,
+        /// The card's model name.
+        card: String,
+        /// The card's `model_sha256`.
+        expected: String,
+        /// SHA-256 of the file.
+        found: String,
+    },
     /// The model card (JSON) does not exist.
     #[error("model card {path} not found (every model needs a card: the same path with `.json`)")]
     CardMissing {

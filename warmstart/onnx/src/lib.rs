@@ -29,7 +29,7 @@ pub mod provider;
 mod registry;
 
 pub use backend::Backend;
-pub use card::{LayoutExpectation, ModelCard, TensorCard};
+pub use card::{LayoutExpectation, ModelCard, TensorCard, sha256_hex};
 pub use error::OnnxError;
 pub use features::{GridFeatures, GridLayout};
 pub use model::{ModelSource, OnnxModel};

@@ -72,12 +72,14 @@ impl OnnxModel {
                         source: e,
                     },
                 })?;
+                card.check_model_bytes(&bytes, model)?;
                 (bytes.into(), card, model.to_path_buf())
             }
             ModelSource::Memory { model, card, name } => {
                 let path = PathBuf::from(format!("<{name}>"));
                 let card = ModelCard::from_json(card, &path)?;
                 card.check_layout(layout)?;
+                card.check_model_bytes(model, &path)?;
                 (model.into(), card, path)
             }
         };

@@ -1,0 +1,243 @@
+//! Bad input to the command-line tool: every case must end with a non-zero exit status and one
+//! clear line on stderr naming what was wrong — never a panic, never a backtrace.
+//!
+//! `cargo test -p deepcontact-cli --test bad_input -- --nocapture` prints the table of
+//! docs/ROBUSTNESS.md (input, exit status, the message).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// A scratch directory under the target directory, emptied first.
+fn scratch(name: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// The repository's `models/` directory.
+fn models() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../models")
+}
+
+struct Case {
+    /// What is wrong, for the table.
+    what: &'static str,
+    args: Vec<String>,
+    /// A fragment the message must contain (it names the field, file or value).
+    expect: &'static str,
+}
+
+fn case(what: &'static str, args: &[&str], expect: &'static str) -> Case {
+    Case {
+        what,
+        args: args.iter().map(|s| s.to_string()).collect(),
+        expect,
+    }
+}
+
+fn cases(dir: &Path) -> Vec<Case> {
+    // Model files: missing, corrupt, card missing, card malformed, card of another model.
+    // Cards without `model_sha256`, so that the backend itself meets the broken file.
+    let card_text = std::fs::read_to_string(models().join("pressure.json")).unwrap();
+    let mut card: serde_json::Value = serde_json::from_str(&card_text).unwrap();
+    card.as_object_mut().unwrap().remove("model_sha256");
+    let unpinned = serde_json::to_string_pretty(&card).unwrap();
+    let garbage = dir.join("garbage.onnx");
+    std::fs::write(&garbage, b"this is not a protobuf").unwrap();
+    std::fs::write(dir.join("garbage.json"), &unpinned).unwrap();
+    let no_card = dir.join("no_card.onnx");
+    std::fs::copy(models().join("pressure.onnx"), &no_card).unwrap();
+    let bad_card = dir.join("bad_card.onnx");
+    std::fs::copy(models().join("pressure.onnx"), &bad_card).unwrap();
+    std::fs::write(dir.join("bad_card.json"), b"{\"name\": \"pressure\", ").unwrap();
+    let swapped = dir.join("swapped.onnx");
+    std::fs::copy(models().join("peak.onnx"), &swapped).unwrap();
+    std::fs::copy(models().join("pressure.json"), dir.join("swapped.json")).unwrap();
+    let truncated = dir.join("truncated.onnx");
+    let bytes = std::fs::read(models().join("pressure.onnx")).unwrap();
+    std::fs::write(&truncated, &bytes[..bytes.len() / 2]).unwrap();
+    std::fs::write(dir.join("truncated.json"), &unpinned).unwrap();
+    let edited = dir.join("edited.onnx");
+    let mut changed = bytes.clone();
+    let last = changed.len() - 1;
+    changed[last] ^= 1;
+    std::fs::write(&edited, &changed).unwrap();
+    std::fs::copy(models().join("pressure.json"), dir.join("edited.json")).unwrap();
+    let onnx = |p: &Path| format!("onnx:path={}", p.display());
+    let out = dir.join("out").display().to_string();
+    let blocked = dir.join("blocked");
+    std::fs::write(&blocked, b"a file where a directory should be").unwrap();
+    let blocked = blocked.join("results").display().to_string();
+
+    fn sim<'a>(extra: &[&'a str]) -> Vec<&'a str> {
+        let mut v = vec!["simulate", "--steps", "2"];
+        v.extend_from_slice(extra);
+        v
+    }
+    let list = vec![
+        case(
+            "unknown provider",
+            &sim(&["--warm-start", "nosuch"]),
+            "nosuch",
+        ),
+        case(
+            "unknown provider parameter",
+            &sim(&["--warm-start", "random:foo=1"]),
+            "foo",
+        ),
+        case(
+            "non-numeric parameter",
+            &sim(&["--warm-start", "random:seed=abc"]),
+            "abc",
+        ),
+        case(
+            "non-finite parameter",
+            &sim(&["--warm-start", "bad:value=nan"]),
+            "value",
+        ),
+        case(
+            "negative random bound",
+            &sim(&["--warm-start", "random:normal_max=-1"]),
+            "normal_max",
+        ),
+        case(
+            "unknown solver option",
+            &sim(&["--solver", "pgs:order=weird"]),
+            "weird",
+        ),
+        case(
+            "PSOR relaxation out of (0, 2)",
+            &sim(&["--solver", "psor:omega=2.5"]),
+            "omega",
+        ),
+        case("negative tolerance", &sim(&["--tolerance=-1"]), "tolerance"),
+        case(
+            "zero iteration cap",
+            &sim(&["--max-iterations", "0"]),
+            "max_iterations",
+        ),
+        case(
+            "negative linear slop",
+            &sim(&["--linear-slop=-0.1"]),
+            "slop",
+        ),
+        case(
+            "non-finite prediction margin",
+            &sim(&["--prediction", "inf"]),
+            "prediction",
+        ),
+        case(
+            "unknown scene",
+            &sim(&["--scene", "nosuch"]),
+            "unknown scene `nosuch`",
+        ),
+        case("empty pile", &sim(&["--bodies", "0"]), "bodies"),
+        case(
+            "model file missing",
+            &sim(&["--warm-start", "onnx:path=/nonexistent/model.onnx"]),
+            "not found",
+        ),
+        case(
+            "model card missing",
+            &sim(&["--warm-start", &onnx(&no_card)]),
+            "card",
+        ),
+        case(
+            "model card malformed JSON",
+            &sim(&["--warm-start", &onnx(&bad_card)]),
+            "card",
+        ),
+        case(
+            "model file not ONNX",
+            &sim(&["--warm-start", &onnx(&garbage)]),
+            "garbage.onnx",
+        ),
+        case(
+            "model file truncated",
+            &sim(&["--warm-start", &onnx(&truncated)]),
+            "truncated.onnx",
+        ),
+        case(
+            "model file changed since its card (one bit)",
+            &sim(&["--warm-start", &onnx(&edited)]),
+            "SHA-256",
+        ),
+        case(
+            "model and card of different models",
+            &sim(&["--warm-start", &onnx(&swapped)]),
+            "SHA-256",
+        ),
+        case(
+            "reversed seed range",
+            &["compare", "--seeds", "5..3", "--out", &out, "--no-plots"],
+            "5..3",
+        ),
+        case(
+            "output path under a file",
+            &[
+                "compare",
+                "--seeds",
+                "1",
+                "--steps",
+                "2",
+                "--warm-starts",
+                "none",
+                "--out",
+                &blocked,
+                "--no-plots",
+                "--quiet",
+            ],
+            "blocked",
+        ),
+        case(
+            "bad shard",
+            &["generate", "--shard", "4/4", "--out", &out, "--quiet"],
+            "4/4",
+        ),
+    ];
+    list
+}
+
+#[test]
+fn every_bad_input_gets_one_clear_line_and_a_non_zero_exit() {
+    let dir = scratch("bad_input");
+    let mut table = String::from("| bad input | command | exit | message |\n|---|---|---:|---|\n");
+    let mut failures = Vec::new();
+    for c in cases(&dir) {
+        let out = Command::new(env!("CARGO_BIN_EXE_deepcontact"))
+            .args(&c.args)
+            .env("RUST_BACKTRACE", "1")
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
+        let message = lines.last().copied().unwrap_or("").to_string();
+        let shown: Vec<String> = c
+            .args
+            .iter()
+            .map(|a| a.replace(&dir.display().to_string(), "$TMP"))
+            .collect();
+        table.push_str(&format!(
+            "| {} | `{}` | {} | {} |\n",
+            c.what,
+            shown.join(" "),
+            out.status.code().map_or("signal".into(), |c| c.to_string()),
+            message
+                .replace(&dir.display().to_string(), "$TMP")
+                .replace('|', "\\|")
+        ));
+        let ok = !out.status.success()
+            && !stderr.contains("panicked")
+            && !stderr.contains("stack backtrace")
+            && message.contains(c.expect);
+        if !ok {
+            failures.push(format!(
+                "{}: status {:?}, stderr:\n{stderr}",
+                c.what, out.status
+            ));
+        }
+    }
+    println!("{table}");
+    assert!(failures.is_empty(), "{}", failures.join("\n---\n"));
+}
