@@ -108,7 +108,8 @@ pub fn check_solve_buffers(
 /// The solver starts from `impulses` (the warm start, one per point), applies them to the
 /// free velocities, iterates under `settings`, and leaves the final impulses in `impulses`
 /// and the final body velocities in `velocities` (one per body of the problem).
-/// Object safe; implementations reuse their internal buffers between calls.
+/// A finite start outside the friction cone (λn < 0 or |λt| > μ λn) is projected onto it
+/// first; a non-finite one is an error. Object safe; implementations reuse their internal buffers between calls.
 pub trait VelocitySolver: Send {
     /// Short name used in reports (`"pgs"`, `"psor"`, ...).
     fn name(&self) -> &str;

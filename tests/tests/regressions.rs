@@ -7,6 +7,13 @@ mod harness;
 
 use std::path::Path;
 
+use deepcontact_core::math::Real;
+use deepcontact_core::{
+    ContactId, ContactProblem, Impulse, ProblemBody, SolveReport, SolverSettings, Vector,
+    VelocitySolver,
+};
+use deepcontact_pgs::PgsSolver;
+
 use deepcontact_core::{CoreError, scene};
 use deepcontact_onnx::{ModelCard, OnnxError};
 
@@ -66,4 +73,87 @@ fn regression_empty_pile_blamed_the_radius() {
         ),
         "{err}"
     );
+}
+
+/// cargo-fuzz `solve_problem` (crash-41447d4d…): PGS started from a finite negative normal
+/// impulse panicked in `clamp` (friction bound μ λn < 0). Starts are now projected onto the
+/// cone first.
+#[test]
+fn regression_pgs_panicked_on_a_negative_normal_start() {
+    const CRASH: &[u8] = &[
+        25, 53, 53, 53, 53, 53, 53, 53, 49, 53, 52, 210, 65, 51, 51, 51, 51, 51, 51, 51, 51, 51,
+        51, 51, 51, 48, 48, 48, 50, 48, 51, 51, 51, 179, 51, 51, 51, 51, 19, 19, 51, 51, 51, 51,
+        53, 53, 49, 53, 52, 210, 65, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 48, 48, 208,
+        205, 48, 51, 51, 51, 179, 51, 51, 51, 51, 19, 19, 49, 52, 56, 56, 54, 53, 56, 57, 50, 53,
+        57, 54, 50, 51, 55, 56, 49, 55, 49, 56, 244, 103, 254, 255, 255, 224, 255, 255, 0, 0, 152,
+        152, 152, 152, 1, 0, 0, 0, 0, 0, 0, 31, 152, 152, 52, 152, 152, 152,
+    ];
+    harness::solve_problem(CRASH);
+
+    // The same bug on a hand-built problem: one ball resting on the ground.
+    let mut p = ContactProblem::new();
+    let body = |y: Real, inv_mass: Real| ProblemBody {
+        world_index: u32::MAX,
+        position: Vector::new(0.0, y),
+        angle: 0.0,
+        linear_velocity: Vector::new(0.0, -0.1),
+        angular_velocity: 0.0,
+        inv_mass,
+        inv_inertia: 2.0 * inv_mass,
+    };
+    let ground = p.add_body(body(-0.5, 0.0));
+    let ball = p.add_body(body(0.5, 1.0));
+    p.begin_manifold();
+    let id = ContactId {
+        body_a: 0,
+        body_b: 1,
+        feature_a: 0,
+        feature_b: 0,
+    };
+    p.add_point(
+        id,
+        ground,
+        ball,
+        Vector::zeros(),
+        Vector::new(0.0, 1.0),
+        -0.01,
+        0.5,
+        0.0,
+        1.0,
+    );
+    let mut imp = vec![Impulse::new(-1.0, 0.3)];
+    let mut vel = vec![(Vector::zeros(), 0.0); 2];
+    PgsSolver::new()
+        .solve(
+            &p,
+            &SolverSettings::default(),
+            &mut imp,
+            &mut vel,
+            &mut SolveReport::default(),
+        )
+        .unwrap();
+    assert!(
+        imp[0].normal >= 0.0 && imp[0].tangent.abs() <= 0.5 * imp[0].normal + 1e-12,
+        "{:?}",
+        imp[0]
+    );
+}
+
+/// cargo-fuzz `solve_problem` (crash-181ce052…): PGS returned `Ok` with a NaN tangent
+/// impulse. Its divergence check looked at `max |Δλ|` only, and `f64::max` skips NaN; it now
+/// checks the sum of squares too, and every impulse and velocity before returning.
+#[test]
+fn regression_pgs_returned_ok_with_a_nan_impulse() {
+    const CRASH: &[u8] = &[
+        25, 53, 53, 53, 53, 53, 53, 53, 49, 53, 52, 210, 4, 5, 51, 51, 6, 4, 65, 4, 6, 6, 51, 51,
+        51, 51, 51, 51, 51, 48, 48, 48, 50, 48, 51, 49, 51, 51, 51, 51, 51, 51, 51, 19, 19, 51, 51,
+        51, 51, 51, 51, 5, 4, 65, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 255, 8, 51,
+        4, 152, 1, 0, 0, 25, 53, 53, 53, 53, 53, 53, 53, 49, 53, 52, 210, 4, 5, 51, 51, 6, 4, 65,
+        4, 6, 6, 51, 51, 51, 51, 51, 51, 51, 48, 48, 48, 50, 48, 51, 49, 51, 51, 51, 51, 51, 51,
+        51, 19, 19, 51, 51, 51, 51, 51, 51, 5, 4, 65, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51,
+        51, 51, 255, 8, 51, 4, 152, 1, 0, 0, 31, 0, 0, 152, 0, 4, 4, 4, 65, 4, 4, 0, 42, 0, 0, 0,
+        0, 31, 152, 152, 52, 152, 152, 152, 31, 0, 0, 152, 0, 4, 4, 4, 65, 4, 4, 0, 42, 0, 0, 0, 0,
+        31, 152, 152, 52, 152, 152, 152,
+    ];
+    harness::solve_problem(CRASH);
 }

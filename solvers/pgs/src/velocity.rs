@@ -142,6 +142,18 @@ impl PgsSolver {
         self.rows
             .extend(problem.points.iter().zip(start).map(|(p, s)| {
                 let t = p.tangent();
+                // The start projected onto the cone λn ≥ 0, |λt| ≤ μ λn (a negative bound
+                // would make the friction clamp panic); NaN passes through to the
+                // non-finite check of the first sweep.
+                let start_normal = if s.normal < 0.0 { 0.0 } else { s.normal };
+                let bound = p.friction * start_normal;
+                let start_tangent = if s.tangent > bound {
+                    bound
+                } else if s.tangent < -bound {
+                    -bound
+                } else {
+                    s.tangent
+                };
                 Row {
                     nx: p.normal.x,
                     ny: p.normal.y,
@@ -153,8 +165,8 @@ impl PgsSolver {
                     tangent_mass: p.tangent_mass,
                     friction: p.friction,
                     bias: p.velocity_bias,
-                    ln: s.normal,
-                    lt: s.tangent,
+                    ln: start_normal,
+                    lt: start_tangent,
                 }
             }));
         self.manifolds.clear();
@@ -329,6 +341,16 @@ impl PgsSolver {
         }
     }
 
+    /// The error for a sweep that produced a non-finite impulse or velocity.
+    fn diverged(&self, iteration: u32) -> PgsError {
+        let point = self
+            .rows
+            .iter()
+            .position(|r| !(r.ln.is_finite() && r.lt.is_finite()))
+            .unwrap_or(0);
+        PgsError::Diverged { point, iteration }
+    }
+
     /// Natural-map residual of the current impulses and velocities, in impulse units.
     fn natural_residual(&self) -> Real {
         let mut res: Real = 0.0;
@@ -473,17 +495,9 @@ impl VelocitySolver for PgsSolver {
             let l2 = sum_sq.sqrt();
             report.residual_inf.push(max_d);
             report.residual_l2.push(l2);
-            if !max_d.is_finite() {
-                let point = self
-                    .rows
-                    .iter()
-                    .position(|r| !(r.ln.is_finite() && r.lt.is_finite()))
-                    .unwrap_or(0);
-                return Err(PgsError::Diverged {
-                    point,
-                    iteration: it,
-                }
-                .into());
+            // `max` skips NaN, so a NaN change shows only in the sum of squares.
+            if !(max_d.is_finite() && l2.is_finite()) {
+                return Err(self.diverged(it).into());
             }
             if settings.converged(it, max_d, l2) {
                 report.converged = true;
@@ -492,6 +506,15 @@ impl VelocitySolver for PgsSolver {
         }
         report.iterations = it;
         self.project_friction();
+        let finite = |v: &Vel| v.vx.is_finite() && v.vy.is_finite() && v.w.is_finite();
+        if !(self
+            .rows
+            .iter()
+            .all(|r| r.ln.is_finite() && r.lt.is_finite())
+            && self.vel.iter().all(finite))
+        {
+            return Err(self.diverged(it).into());
+        }
         // Stage 4, store impulses and velocities.
         for (imp, r) in impulses.iter_mut().zip(&self.rows) {
             *imp = Impulse::new(r.ln, r.lt);
