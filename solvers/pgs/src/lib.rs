@@ -14,7 +14,7 @@ mod position;
 mod velocity;
 
 pub use position::PgsPositionSolver;
-pub use velocity::{Ordering, PgsSettings, PgsSolver};
+pub use velocity::{LANES, Ordering, PgsSettings, PgsSolver};
 
 /// Errors of this crate (wrapped into [`deepcontact_core::CoreError`] at the trait boundary).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

@@ -23,6 +23,11 @@ pub struct PgsSettings {
     pub validate: bool,
     /// Order of the manifolds within a sweep (default [`Ordering::Coloured`]).
     pub ordering: Ordering,
+    /// With [`Ordering::Coloured`], solve the single-point manifolds of a colour
+    /// [`LANES`] at a time in structure-of-arrays batches (default true). The results are
+    /// bit-identical to the one-at-a-time loop (the manifolds of a colour are independent and
+    /// each lane does the scalar arithmetic); only `Σ Δλ²` is summed in another order.
+    pub lanes: bool,
 }
 
 impl Default for PgsSettings {
@@ -31,6 +36,7 @@ impl Default for PgsSettings {
             block_solver: true,
             validate: true,
             ordering: Ordering::Coloured,
+            lanes: true,
         }
     }
 }
@@ -93,6 +99,43 @@ struct Block {
     i22: Real,
 }
 
+/// Manifolds solved side by side in one batch.
+pub const LANES: usize = 4;
+
+/// [`LANES`] single-point manifolds of one colour in structure-of-arrays form: each field
+/// holds one value per lane. Padding lanes point at a dummy immovable body with zero masses,
+/// so their impulse changes are exactly zero.
+#[derive(Debug, Clone, Copy, Default)]
+struct Batch {
+    a: [u32; LANES],
+    b: [u32; LANES],
+    /// Row of each lane in `rows` (`u32::MAX` for padding).
+    row: [u32; LANES],
+    nx: [Real; LANES],
+    ny: [Real; LANES],
+    rna: [Real; LANES],
+    rnb: [Real; LANES],
+    rta: [Real; LANES],
+    rtb: [Real; LANES],
+    normal_mass: [Real; LANES],
+    tangent_mass: [Real; LANES],
+    friction: [Real; LANES],
+    bias: [Real; LANES],
+    ma: [Real; LANES],
+    ia: [Real; LANES],
+    mb: [Real; LANES],
+    ib: [Real; LANES],
+    ln: [Real; LANES],
+    lt: [Real; LANES],
+}
+
+/// One colour of the sweep: its batches, then its other manifolds one at a time.
+#[derive(Debug, Clone, Default)]
+struct Segment {
+    batches: std::ops::Range<usize>,
+    manifolds: std::ops::Range<usize>,
+}
+
 /// Velocity `(vx, vy, ω)` of one body.
 #[derive(Debug, Clone, Copy, Default)]
 struct Vel {
@@ -114,6 +157,9 @@ pub struct PgsSolver {
     /// Colour of each manifold, and the scratch copy used to reorder.
     colours: Vec<u8>,
     scratch: Vec<Manifold>,
+    /// Batches of single-point manifolds and the sweep plan (empty: one at a time).
+    batches: Vec<Batch>,
+    segments: Vec<Segment>,
 }
 
 impl PgsSolver {
@@ -132,6 +178,8 @@ impl PgsSolver {
 
     /// Stage 1, prepare: copy the problem into rows, manifolds and packed velocities.
     fn prepare(&mut self, problem: &ContactProblem, start: &[Impulse]) {
+        self.batches.clear();
+        self.segments.clear();
         self.vel.clear();
         self.vel.extend(problem.bodies.iter().map(|b| Vel {
             vx: b.linear_velocity.x,
@@ -269,6 +317,85 @@ impl PgsSolver {
             offsets[c as usize] += 1;
         }
         std::mem::swap(&mut self.manifolds, &mut self.scratch);
+        if self.settings.lanes {
+            self.batch(&counts);
+        }
+    }
+
+    /// Builds the sweep plan from the colour-sorted manifolds (`counts` per colour): the
+    /// single-point manifolds of each colour go into batches of [`LANES`], the others stay
+    /// in `manifolds` (moved behind the batched ones, which are dropped from it). The
+    /// overflow colour (64) may share bodies and stays one at a time, in order.
+    fn batch(&mut self, counts: &[u32; 65]) {
+        let dummy = self.vel.len() as u32;
+        self.vel.push(Vel::default());
+        self.scratch.clear();
+        let mut start = 0usize;
+        for (colour, &count) in counts.iter().enumerate() {
+            let range = start..start + count as usize;
+            start = range.end;
+            if count == 0 {
+                continue;
+            }
+            let first_batch = self.batches.len();
+            let first_manifold = self.scratch.len();
+            let mut lane = LANES;
+            for m in &self.manifolds[range] {
+                if colour == 64 || m.count != 1 {
+                    self.scratch.push(*m);
+                    continue;
+                }
+                if lane == LANES {
+                    self.batches.push(Batch {
+                        a: [dummy; LANES],
+                        b: [dummy; LANES],
+                        row: [u32::MAX; LANES],
+                        ..Batch::default()
+                    });
+                    lane = 0;
+                }
+                let batch = self.batches.last_mut().expect("pushed above");
+                let r = &self.rows[m.start as usize];
+                batch.a[lane] = m.a;
+                batch.b[lane] = m.b;
+                batch.row[lane] = m.start;
+                batch.nx[lane] = r.nx;
+                batch.ny[lane] = r.ny;
+                batch.rna[lane] = r.rna;
+                batch.rnb[lane] = r.rnb;
+                batch.rta[lane] = r.rta;
+                batch.rtb[lane] = r.rtb;
+                batch.normal_mass[lane] = r.normal_mass;
+                batch.tangent_mass[lane] = r.tangent_mass;
+                batch.friction[lane] = r.friction;
+                batch.bias[lane] = r.bias;
+                batch.ma[lane] = m.ma;
+                batch.ia[lane] = m.ia;
+                batch.mb[lane] = m.mb;
+                batch.ib[lane] = m.ib;
+                batch.ln[lane] = r.ln;
+                batch.lt[lane] = r.lt;
+                lane += 1;
+            }
+            self.segments.push(Segment {
+                batches: first_batch..self.batches.len(),
+                manifolds: first_manifold..self.scratch.len(),
+            });
+        }
+        // `manifolds` keeps every manifold (warm start, projection and residual walk it);
+        // the one-at-a-time remainder of the sweep lives in `scratch`.
+    }
+
+    /// Copies the batched impulses back into their rows.
+    fn sync_rows(&mut self) {
+        for batch in &self.batches {
+            for lane in 0..LANES {
+                if let Some(r) = self.rows.get_mut(batch.row[lane] as usize) {
+                    r.ln = batch.ln[lane];
+                    r.lt = batch.lt[lane];
+                }
+            }
+        }
     }
 
     /// Stage 2, warm start: apply the start impulses to the velocities.
@@ -286,37 +413,25 @@ impl PgsSolver {
     fn iterate(&mut self) -> (Real, Real) {
         let mut max_d: Real = 0.0;
         let mut sum_sq: Real = 0.0;
-        let vel = &mut self.vel;
-        for m in &self.manifolds {
-            let rows = &mut self.rows[m.start as usize..(m.start + m.count) as usize];
-            let (mut va, mut vb) = (vel[m.a as usize], vel[m.b as usize]);
-            // Friction rows first (their bound uses the current normal impulse).
-            for r in rows.iter_mut() {
-                let vt = tangent_velocity(r, &va, &vb);
-                let bound = r.friction * r.ln;
-                let new = (r.lt - r.tangent_mass * vt).clamp(-bound, bound);
-                let d = new - r.lt;
-                r.lt = new;
-                apply(m, r, &mut va, &mut vb, 0.0, d);
-                max_d = max_d.max(d.abs());
-                sum_sq += d * d;
+        if self.segments.is_empty() {
+            for m in &self.manifolds {
+                sweep_manifold(m, &mut self.rows, &mut self.vel, &mut max_d, &mut sum_sq);
             }
-            if let Some(k) = &m.block {
-                let (d1, d2) = solve_block(m, rows, k, &mut va, &mut vb);
-                max_d = max_d.max(d1.abs()).max(d2.abs());
-                sum_sq += d1 * d1 + d2 * d2;
-            } else {
-                for r in rows.iter_mut() {
-                    let vn = normal_velocity(r, &va, &vb);
-                    let new = (r.ln - r.normal_mass * (vn - r.bias)).max(0.0);
-                    let d = new - r.ln;
-                    r.ln = new;
-                    apply(m, r, &mut va, &mut vb, d, 0.0);
-                    max_d = max_d.max(d.abs());
-                    sum_sq += d * d;
-                }
+            return (max_d, sum_sq);
+        }
+        let mut lane_max = [0.0; LANES];
+        let mut lane_sum = [0.0; LANES];
+        for seg in &self.segments {
+            for batch in &mut self.batches[seg.batches.clone()] {
+                sweep_batch(batch, &mut self.vel, &mut lane_max, &mut lane_sum);
             }
-            store(vel, m, va, vb);
+            for m in &self.scratch[seg.manifolds.clone()] {
+                sweep_manifold(m, &mut self.rows, &mut self.vel, &mut max_d, &mut sum_sq);
+            }
+        }
+        for lane in 0..LANES {
+            max_d = max_d.max(lane_max[lane]);
+            sum_sq += lane_sum[lane];
         }
         (max_d, sum_sq)
     }
@@ -329,8 +444,7 @@ impl PgsSolver {
         for m in &self.manifolds {
             let (mut va, mut vb) = (self.vel[m.a as usize], self.vel[m.b as usize]);
             for r in &mut self.rows[m.start as usize..(m.start + m.count) as usize] {
-                let bound = r.friction * r.ln;
-                let new = r.lt.clamp(-bound, bound);
+                let new = clamp_sym(r.lt, r.friction * r.ln);
                 if new != r.lt {
                     let d = new - r.lt;
                     r.lt = new;
@@ -357,15 +471,142 @@ impl PgsSolver {
         for m in &self.manifolds {
             let (va, vb) = (&self.vel[m.a as usize], &self.vel[m.b as usize]);
             for r in &self.rows[m.start as usize..(m.start + m.count) as usize] {
-                let rn =
-                    r.ln - (r.ln - r.normal_mass * (normal_velocity(r, va, vb) - r.bias)).max(0.0);
-                let bound = r.friction * r.ln;
+                let rn = r.ln
+                    - non_negative(r.ln - r.normal_mass * (normal_velocity(r, va, vb) - r.bias));
                 let rt = r.lt
-                    - (r.lt - r.tangent_mass * tangent_velocity(r, va, vb)).clamp(-bound, bound);
+                    - clamp_sym(
+                        r.lt - r.tangent_mass * tangent_velocity(r, va, vb),
+                        r.friction * r.ln,
+                    );
                 res = res.max(rn.abs()).max(rt.abs());
             }
         }
         res
+    }
+}
+
+/// `x` clamped to `[-bound, bound]` as `f64::clamp` does it, without its panic for a
+/// NaN or negative bound (a NaN then reaches the divergence check).
+#[inline(always)]
+fn clamp_sym(x: Real, bound: Real) -> Real {
+    let lo = -bound;
+    let x = if x < lo { lo } else { x };
+    if x > bound { bound } else { x }
+}
+
+/// `max(x, 0)` that keeps a NaN (for the divergence check) and is the same in every lane.
+#[inline(always)]
+fn non_negative(x: Real) -> Real {
+    if x < 0.0 { 0.0 } else { x }
+}
+
+/// One manifold's rows: friction first (bounded by the current normal impulse), then the
+/// normal rows (block solver for a 2-point manifold with a well-conditioned `K`).
+#[inline(always)]
+fn sweep_manifold(
+    m: &Manifold,
+    rows: &mut [Row],
+    vel: &mut [Vel],
+    max_d: &mut Real,
+    sum_sq: &mut Real,
+) {
+    let rows = &mut rows[m.start as usize..(m.start + m.count) as usize];
+    let (mut va, mut vb) = (vel[m.a as usize], vel[m.b as usize]);
+    for r in rows.iter_mut() {
+        let vt = tangent_velocity(r, &va, &vb);
+        let new = clamp_sym(r.lt - r.tangent_mass * vt, r.friction * r.ln);
+        let d = new - r.lt;
+        r.lt = new;
+        apply(m, r, &mut va, &mut vb, 0.0, d);
+        *max_d = max_d.max(d.abs());
+        *sum_sq += d * d;
+    }
+    if let Some(k) = &m.block {
+        let (d1, d2) = solve_block(m, rows, k, &mut va, &mut vb);
+        *max_d = max_d.max(d1.abs()).max(d2.abs());
+        *sum_sq += d1 * d1 + d2 * d2;
+    } else {
+        for r in rows.iter_mut() {
+            let vn = normal_velocity(r, &va, &vb);
+            let new = non_negative(r.ln - r.normal_mass * (vn - r.bias));
+            let d = new - r.ln;
+            r.ln = new;
+            apply(m, r, &mut va, &mut vb, d, 0.0);
+            *max_d = max_d.max(d.abs());
+            *sum_sq += d * d;
+        }
+    }
+    store(vel, m, va, vb);
+}
+
+/// [`LANES`] single-point manifolds of one colour: gather the body velocities, run the
+/// friction row and the normal row of every lane with exactly the arithmetic of
+/// [`sweep_manifold`] (so each lane's result is bit-identical to it), scatter the movable
+/// bodies back. The lanes' bodies are distinct (one colour), except immovable ones, which
+/// are read but never written.
+#[inline(always)]
+fn sweep_batch(
+    b: &mut Batch,
+    vel: &mut [Vel],
+    lane_max: &mut [Real; LANES],
+    lane_sum: &mut [Real; LANES],
+) {
+    let (mut avx, mut avy, mut aw) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
+    let (mut bvx, mut bvy, mut bw) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
+    for i in 0..LANES {
+        let (va, vb) = (vel[b.a[i] as usize], vel[b.b[i] as usize]);
+        (avx[i], avy[i], aw[i]) = (va.vx, va.vy, va.w);
+        (bvx[i], bvy[i], bw[i]) = (vb.vx, vb.vy, vb.w);
+    }
+    // Friction rows: `tangent_velocity`, clamp, then `apply(.., 0.0, d)`.
+    for i in 0..LANES {
+        let vt = (bvx[i] - avx[i]) * -b.ny[i] + (bvy[i] - avy[i]) * b.nx[i] + bw[i] * b.rtb[i]
+            - aw[i] * b.rta[i];
+        let new = clamp_sym(b.lt[i] - b.tangent_mass[i] * vt, b.friction[i] * b.ln[i]);
+        let d = new - b.lt[i];
+        b.lt[i] = new;
+        let (px, py) = (0.0 * b.nx[i] - d * b.ny[i], 0.0 * b.ny[i] + d * b.nx[i]);
+        avx[i] -= b.ma[i] * px;
+        avy[i] -= b.ma[i] * py;
+        aw[i] -= b.ia[i] * (0.0 * b.rna[i] + d * b.rta[i]);
+        bvx[i] += b.mb[i] * px;
+        bvy[i] += b.mb[i] * py;
+        bw[i] += b.ib[i] * (0.0 * b.rnb[i] + d * b.rtb[i]);
+        lane_max[i] = lane_max[i].max(d.abs());
+        lane_sum[i] += d * d;
+    }
+    // Normal rows: `normal_velocity`, projection, then `apply(.., d, 0.0)`.
+    for i in 0..LANES {
+        let vn = (bvx[i] - avx[i]) * b.nx[i] + (bvy[i] - avy[i]) * b.ny[i] + bw[i] * b.rnb[i]
+            - aw[i] * b.rna[i];
+        let new = non_negative(b.ln[i] - b.normal_mass[i] * (vn - b.bias[i]));
+        let d = new - b.ln[i];
+        b.ln[i] = new;
+        let (px, py) = (d * b.nx[i] - 0.0 * b.ny[i], d * b.ny[i] + 0.0 * b.nx[i]);
+        avx[i] -= b.ma[i] * px;
+        avy[i] -= b.ma[i] * py;
+        aw[i] -= b.ia[i] * (d * b.rna[i] + 0.0 * b.rta[i]);
+        bvx[i] += b.mb[i] * px;
+        bvy[i] += b.mb[i] * py;
+        bw[i] += b.ib[i] * (d * b.rnb[i] + 0.0 * b.rtb[i]);
+        lane_max[i] = lane_max[i].max(d.abs());
+        lane_sum[i] += d * d;
+    }
+    for i in 0..LANES {
+        if movable(b.ma[i], b.ia[i]) {
+            vel[b.a[i] as usize] = Vel {
+                vx: avx[i],
+                vy: avy[i],
+                w: aw[i],
+            };
+        }
+        if movable(b.mb[i], b.ib[i]) {
+            vel[b.b[i] as usize] = Vel {
+                vx: bvx[i],
+                vy: bvy[i],
+                w: bw[i],
+            };
+        }
     }
 }
 
@@ -497,6 +738,7 @@ impl VelocitySolver for PgsSolver {
             report.residual_l2.push(l2);
             // `max` skips NaN, so a NaN change shows only in the sum of squares.
             if !(max_d.is_finite() && l2.is_finite()) {
+                self.sync_rows();
                 return Err(self.diverged(it).into());
             }
             if settings.converged(it, max_d, l2) {
@@ -505,6 +747,7 @@ impl VelocitySolver for PgsSolver {
             }
         }
         report.iterations = it;
+        self.sync_rows();
         self.project_friction();
         let finite = |v: &Vel| v.vx.is_finite() && v.vy.is_finite() && v.w.is_finite();
         if !(self
@@ -604,5 +847,67 @@ mod tests {
         for ((v1, w1), (v2, w2)) in out[0].iter().zip(&out[1]) {
             assert!((v1 - v2).norm() < 1e-6 && (w1 - w2).abs() < 1e-6);
         }
+    }
+
+    /// Solves `problem` from `start` with the given options; returns the impulses and
+    /// velocities as bits.
+    fn solve_bits(
+        problem: &ContactProblem,
+        start: &[Impulse],
+        settings: PgsSettings,
+        iterations: u32,
+    ) -> (Vec<u64>, Vec<u64>, u32) {
+        let mut solver = PgsSolver::with_settings(settings);
+        let mut imp = start.to_vec();
+        let mut vel = vec![(Vector::zeros(), 0.0); problem.bodies.len()];
+        let mut report = SolveReport::default();
+        let stop = SolverSettings {
+            max_iterations: iterations,
+            ..SolverSettings::default()
+        };
+        solver
+            .solve(problem, &stop, &mut imp, &mut vel, &mut report)
+            .unwrap();
+        (
+            imp.iter()
+                .flat_map(|i| [i.normal.to_bits(), i.tangent.to_bits()])
+                .collect(),
+            vel.iter()
+                .flat_map(|(v, w)| [v.x.to_bits(), v.y.to_bits(), w.to_bits()])
+                .collect(),
+            report.iterations,
+        )
+    }
+
+    #[test]
+    fn lanes_are_bit_identical_to_one_manifold_at_a_time() {
+        // Circles (single-point manifolds, batched) and a pyramid of boxes (2-point
+        // manifolds with the block solver, one at a time), from zero and carried starts.
+        let mut problems = vec![pile_problem()];
+        let mut world = scene::pyramid(6).build(WorldSettings::default()).unwrap();
+        let (mut s, mut p) = (PgsSolver::new(), crate::PgsPositionSolver::new());
+        for _ in 0..40 {
+            world.step(&mut CarriedWarmStart, &mut s, &mut p).unwrap();
+        }
+        problems.extend(world.last_problems().iter().cloned());
+        let mut batched = 0;
+        for problem in &problems {
+            let carried: Vec<Impulse> = (0..problem.len())
+                .map(|i| Impulse::new(0.01 * i as Real, 0.001 * i as Real))
+                .collect();
+            for start in [vec![Impulse::ZERO; problem.len()], carried] {
+                let one = PgsSettings {
+                    lanes: false,
+                    ..PgsSettings::default()
+                };
+                let reference = solve_bits(problem, &start, one, 300);
+                let lanes = solve_bits(problem, &start, PgsSettings::default(), 300);
+                assert_eq!(reference, lanes);
+            }
+            let mut solver = PgsSolver::new();
+            solver.prepare(problem, &vec![Impulse::ZERO; problem.len()]);
+            batched += solver.batches.len();
+        }
+        assert!(batched > 0, "no batch was formed");
     }
 }

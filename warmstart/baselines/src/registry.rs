@@ -60,20 +60,10 @@ impl Registry {
         let mut r = Self::empty();
         r.register_solver(
             "pgs",
-            "sequential-impulse projected Gauss-Seidel (Box2D v2.4); block=true|false, order=coloured|sequential",
+            "sequential-impulse projected Gauss-Seidel (Box2D v2.4); block=true|false, order=coloured|sequential, lanes=true|false",
             |p| {
-                let block = match p.string("block") {
-                    None | Some("true") => true,
-                    Some("false") => false,
-                    Some(v) => {
-                        return Err(WarmstartError::InvalidParameter {
-                            spec: "pgs".into(),
-                            param: "block".into(),
-                            value: v.into(),
-                            reason: "must be true or false".into(),
-                        });
-                    }
-                };
+                let block = p.bool("block", true)?;
+                let lanes = p.bool("lanes", true)?;
                 let ordering = match p.string("order") {
                     None | Some("coloured") | Some("colored") => deepcontact_pgs::Ordering::Coloured,
                     Some("sequential") => deepcontact_pgs::Ordering::Sequential,
@@ -90,6 +80,7 @@ impl Registry {
                     deepcontact_pgs::PgsSettings {
                         block_solver: block,
                         ordering,
+                        lanes,
                         ..Default::default()
                     },
                 )))

@@ -152,6 +152,16 @@ impl<'a> Params<'a> {
         }
     }
 
+    /// A boolean parameter (`true` / `false`), or `default`.
+    pub fn bool(&mut self, key: &'static str, default: bool) -> Result<bool, WarmstartError> {
+        match self.string(key) {
+            None => Ok(default),
+            Some("true") => Ok(true),
+            Some("false") => Ok(false),
+            Some(v) => Err(self.invalid(key, v, "must be true or false")),
+        }
+    }
+
     /// An unsigned integer parameter, or `default`.
     pub fn u64(&mut self, key: &'static str, default: u64) -> Result<u64, WarmstartError> {
         match self.string(key) {
