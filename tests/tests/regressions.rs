@@ -157,3 +157,18 @@ fn regression_pgs_returned_ok_with_a_nan_impulse() {
     ];
     harness::solve_problem(CRASH);
 }
+
+/// cargo-fuzz `solve_problem` (crash-07ff248e…): a sweep that overflowed to λn = ∞ gave the
+/// friction bound μ λn = NaN and `f64::clamp` panicked on it. The solver loop now clamps
+/// without the panic and reports the divergence as `PgsError::Diverged`.
+#[test]
+fn regression_pgs_panicked_on_a_nan_friction_bound() {
+    const CRASH: &[u8] = &[
+        25, 53, 53, 53, 53, 53, 49, 48, 51, 48, 56, 210, 4, 5, 51, 51, 6, 4, 122, 65, 4, 6, 6, 51,
+        51, 51, 51, 51, 51, 51, 48, 48, 48, 50, 48, 51, 49, 51, 51, 51, 51, 51, 51, 51, 19, 19, 51,
+        51, 51, 51, 51, 51, 5, 4, 65, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 255, 8,
+        51, 4, 152, 1, 0, 0, 31, 0, 0, 152, 0, 4, 4, 4, 4, 65, 0, 42, 4, 0, 0, 0, 0, 31, 152, 152,
+        52, 152, 152, 152,
+    ];
+    harness::solve_problem(CRASH);
+}
