@@ -30,6 +30,16 @@ pub enum CliError {
         /// What failed.
         reason: String,
     },
+    /// A soak check failed.
+    #[error("soak {warm_start}: step {step}: {what}")]
+    Soak {
+        /// The provider spec.
+        warm_start: String,
+        /// The step at which the check failed.
+        step: u64,
+        /// What was violated, with the body and values.
+        what: String,
+    },
     /// A bad command-line value not caught by the parser.
     #[error("{0}")]
     Usage(String),

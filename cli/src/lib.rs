@@ -9,3 +9,4 @@ pub mod grid_roundtrip;
 pub mod plots;
 pub mod render;
 pub mod simulate;
+pub mod soak;

@@ -1,7 +1,7 @@
 //! `deepcontact`: simulate the thesis scenes, compare warm starts, and more.
 
 use clap::{Parser, Subcommand};
-use deepcontact_cli::{compare, generate, grid_roundtrip, simulate};
+use deepcontact_cli::{compare, generate, grid_roundtrip, simulate, soak};
 
 /// 2D rigid-body contacts solved iteratively, with pluggable warm starts.
 #[derive(Debug, Parser)]
@@ -21,6 +21,8 @@ enum Command {
     Compare(compare::CompareArgs),
     /// The thesis's Table 1: body-mass and contact-impulse loss of particles → grid → particles.
     GridRoundtrip(grid_roundtrip::GridRoundtripArgs),
+    /// The pile for 20 000 steps with each baseline warm start: no NaN, no escape, energy bounded.
+    Soak(soak::SoakArgs),
 }
 
 fn main() {
@@ -30,6 +32,7 @@ fn main() {
         Command::Generate(args) => generate::run(args),
         Command::Compare(args) => compare::run(args),
         Command::GridRoundtrip(args) => grid_roundtrip::run(args),
+        Command::Soak(args) => soak::run(args),
     };
     if let Err(e) = result {
         eprintln!("error: {e}");
