@@ -448,7 +448,7 @@ impl PgsSolver {
                 if new != r.lt {
                     let d = new - r.lt;
                     r.lt = new;
-                    apply(m, r, &mut va, &mut vb, 0.0, d);
+                    apply_tangent(m, r, &mut va, &mut vb, d);
                 }
             }
             store(&mut self.vel, m, va, vb);
@@ -517,7 +517,7 @@ fn sweep_manifold(
         let new = clamp_sym(r.lt - r.tangent_mass * vt, r.friction * r.ln);
         let d = new - r.lt;
         r.lt = new;
-        apply(m, r, &mut va, &mut vb, 0.0, d);
+        apply_tangent(m, r, &mut va, &mut vb, d);
         *max_d = max_d.max(d.abs());
         *sum_sq += d * d;
     }
@@ -531,7 +531,7 @@ fn sweep_manifold(
             let new = non_negative(r.ln - r.normal_mass * (vn - r.bias));
             let d = new - r.ln;
             r.ln = new;
-            apply(m, r, &mut va, &mut vb, d, 0.0);
+            apply_normal(m, r, &mut va, &mut vb, d);
             *max_d = max_d.max(d.abs());
             *sum_sq += d * d;
         }
@@ -558,37 +558,37 @@ fn sweep_batch(
         (avx[i], avy[i], aw[i]) = (va.vx, va.vy, va.w);
         (bvx[i], bvy[i], bw[i]) = (vb.vx, vb.vy, vb.w);
     }
-    // Friction rows: `tangent_velocity`, clamp, then `apply(.., 0.0, d)`.
+    // Friction rows: `tangent_velocity`, clamp, then `apply_tangent`.
     for i in 0..LANES {
         let vt = (bvx[i] - avx[i]) * -b.ny[i] + (bvy[i] - avy[i]) * b.nx[i] + bw[i] * b.rtb[i]
             - aw[i] * b.rta[i];
         let new = clamp_sym(b.lt[i] - b.tangent_mass[i] * vt, b.friction[i] * b.ln[i]);
         let d = new - b.lt[i];
         b.lt[i] = new;
-        let (px, py) = (0.0 * b.nx[i] - d * b.ny[i], 0.0 * b.ny[i] + d * b.nx[i]);
+        let (px, py) = (d * -b.ny[i], d * b.nx[i]);
         avx[i] -= b.ma[i] * px;
         avy[i] -= b.ma[i] * py;
-        aw[i] -= b.ia[i] * (0.0 * b.rna[i] + d * b.rta[i]);
+        aw[i] -= b.ia[i] * (d * b.rta[i]);
         bvx[i] += b.mb[i] * px;
         bvy[i] += b.mb[i] * py;
-        bw[i] += b.ib[i] * (0.0 * b.rnb[i] + d * b.rtb[i]);
+        bw[i] += b.ib[i] * (d * b.rtb[i]);
         lane_max[i] = lane_max[i].max(d.abs());
         lane_sum[i] += d * d;
     }
-    // Normal rows: `normal_velocity`, projection, then `apply(.., d, 0.0)`.
+    // Normal rows: `normal_velocity`, projection, then `apply_normal`.
     for i in 0..LANES {
         let vn = (bvx[i] - avx[i]) * b.nx[i] + (bvy[i] - avy[i]) * b.ny[i] + bw[i] * b.rnb[i]
             - aw[i] * b.rna[i];
         let new = non_negative(b.ln[i] - b.normal_mass[i] * (vn - b.bias[i]));
         let d = new - b.ln[i];
         b.ln[i] = new;
-        let (px, py) = (d * b.nx[i] - 0.0 * b.ny[i], d * b.ny[i] + 0.0 * b.nx[i]);
+        let (px, py) = (d * b.nx[i], d * b.ny[i]);
         avx[i] -= b.ma[i] * px;
         avy[i] -= b.ma[i] * py;
-        aw[i] -= b.ia[i] * (d * b.rna[i] + 0.0 * b.rta[i]);
+        aw[i] -= b.ia[i] * (d * b.rna[i]);
         bvx[i] += b.mb[i] * px;
         bvy[i] += b.mb[i] * py;
-        bw[i] += b.ib[i] * (d * b.rnb[i] + 0.0 * b.rtb[i]);
+        bw[i] += b.ib[i] * (d * b.rnb[i]);
         lane_max[i] = lane_max[i].max(d.abs());
         lane_sum[i] += d * d;
     }
@@ -652,6 +652,30 @@ fn apply(m: &Manifold, r: &Row, va: &mut Vel, vb: &mut Vel, dn: Real, dt: Real) 
     vb.w += m.ib * (dn * r.rnb + dt * r.rtb);
 }
 
+/// [`apply`] of a normal impulse change `dn` alone (`P = dn n`).
+#[inline(always)]
+fn apply_normal(m: &Manifold, r: &Row, va: &mut Vel, vb: &mut Vel, dn: Real) {
+    let (px, py) = (dn * r.nx, dn * r.ny);
+    va.vx -= m.ma * px;
+    va.vy -= m.ma * py;
+    va.w -= m.ia * (dn * r.rna);
+    vb.vx += m.mb * px;
+    vb.vy += m.mb * py;
+    vb.w += m.ib * (dn * r.rnb);
+}
+
+/// [`apply`] of a tangent impulse change `dt` alone (`P = dt t`, `t = (−n.y, n.x)`).
+#[inline(always)]
+fn apply_tangent(m: &Manifold, r: &Row, va: &mut Vel, vb: &mut Vel, dt: Real) {
+    let (px, py) = (dt * -r.ny, dt * r.nx);
+    va.vx -= m.ma * px;
+    va.vy -= m.ma * py;
+    va.w -= m.ia * (dt * r.rta);
+    vb.vx += m.mb * px;
+    vb.vy += m.mb * py;
+    vb.w += m.ib * (dt * r.rtb);
+}
+
 /// Box2D v2.4's 2-point block solver for the normal rows: solve the mixed LCP
 /// `vn = K x + b, x ≥ 0, vn ≥ 0, x·vn = 0` on the accumulated impulses by enumerating
 /// the four cases (both active, only 1, only 2, none). Returns the two Δλn.
@@ -696,8 +720,8 @@ fn solve_block(
     let (d1, d2) = (x.0 - a1, x.1 - a2);
     rows[0].ln = x.0;
     rows[1].ln = x.1;
-    apply(m, &r1, va, vb, d1, 0.0);
-    apply(m, &r2, va, vb, d2, 0.0);
+    apply_normal(m, &r1, va, vb, d1);
+    apply_normal(m, &r2, va, vb, d2);
     (d1, d2)
 }
 
