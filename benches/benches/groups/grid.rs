@@ -1,5 +1,5 @@
 //! Particles ↔ grid transfer (deepcontact-grid) on the recorded thesis pile: the contact
-//! points and their impulses of step 240 (~300 points), on the thesis grid (61 × 61 at 0.25 m,
+//! points and their impulses of step 240 (161 points), on the thesis grid (61 × 61 at 0.25 m,
 //! poly6, h = 0.5), with the exact lookup and with kiddo k-d trees; and the world encoder (6
 //! input channels from bodies, contacts and walls).
 
