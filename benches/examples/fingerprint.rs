@@ -41,14 +41,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let r = world.step(&mut CarriedWarmStart, &mut solver, &mut position)?;
         let mut h = 0xcbf2_9ce4_8422_2325u64;
         for b in world.bodies() {
-            for v in [
-                b.position.x,
-                b.position.y,
-                b.angle,
-                b.linear_velocity.x,
-                b.linear_velocity.y,
-                b.angular_velocity,
-            ] {
+            for v in b.state() {
                 h = fnv(h, v.to_bits());
             }
         }

@@ -111,14 +111,7 @@ pub fn soak_one(
             if b.kind != BodyKind::Dynamic {
                 continue;
             }
-            let state = [
-                b.position.x,
-                b.position.y,
-                b.angle,
-                b.linear_velocity.x,
-                b.linear_velocity.y,
-                b.angular_velocity,
-            ];
+            let state = b.state();
             if !state.iter().all(|v| v.is_finite()) {
                 return Err(violation(
                     spec,

@@ -126,6 +126,19 @@ pub struct Body {
 }
 
 impl Body {
+    /// The body's state as `[x, y, angle, vx, vy, ω]`: what determinism hashes and
+    /// finiteness checks read.
+    pub fn state(&self) -> [Real; 6] {
+        [
+            self.position.x,
+            self.position.y,
+            self.angle,
+            self.linear_velocity.x,
+            self.linear_velocity.y,
+            self.angular_velocity,
+        ]
+    }
+
     pub(crate) fn from_desc(desc: &BodyDesc, index: usize) -> Result<Self, CoreError> {
         let bad = |field, value: Real, reason| CoreError::InvalidBodyParameter {
             body: index,

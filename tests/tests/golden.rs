@@ -45,17 +45,10 @@ fn pile_hash() -> (u64, usize) {
     let reports = run(&mut world, warm.as_mut(), 250, |_, _| {}).unwrap();
     assert_eq!(reports.len(), 250);
     assert!(reports.iter().all(|r| r.fallbacks == 0));
-    let words = world.bodies().iter().flat_map(|b| {
-        [
-            b.position.x,
-            b.position.y,
-            b.angle,
-            b.linear_velocity.x,
-            b.linear_velocity.y,
-            b.angular_velocity,
-        ]
-        .map(f64::to_bits)
-    });
+    let words = world
+        .bodies()
+        .iter()
+        .flat_map(|b| b.state().map(f64::to_bits));
     (fnv1a64(words), world.bodies().len())
 }
 
