@@ -19,15 +19,14 @@
 
 use std::path::PathBuf;
 
+use deepcontact_core::Registry;
 use deepcontact_core::scene;
 use deepcontact_core::{
-    CarriedWarmStart, ContactProblem, CoreError, Impulse, PositionSettings, Real, ResidualNorm,
-    SolveReport, SolverSettings, StepReport, Vector, VelocitySolver, WarmStart, WarmStartContext,
-    WarmStartError, World, WorldSettings,
+    CarriedWarmStart, ContactProblem, CoreError, Impulse, Observation, PositionSettings, Real,
+    ResidualNorm, SolveReport, SolverSettings, StepReport, Vector, VelocitySolver, WarmStart,
+    WarmStartContext, WarmStartError, World, WorldSettings,
 };
-use deepcontact_lcp::{NewtonSolver, PsorSolver};
 use deepcontact_pgs::{PgsPositionSolver, PgsSolver};
-use deepcontact_warmstart::Registry;
 
 /// Seed of the recorded pile (the first of the thesis's comparison seeds).
 pub const SEED: u64 = 12345;
@@ -42,27 +41,10 @@ pub const SIZES: [usize; 3] = [100, 1_000, 10_000];
 /// The velocity solvers compared.
 pub const SOLVERS: [&str; 3] = ["pgs", "psor", "newton"];
 
-/// The registry with every provider and solver of this workspace: the baselines
-/// (`none`, `builtin`, `random`, `bad`, `copy`, `copy2`, `copy0`), `grid`, the CNN providers
-/// (`pressure`, `peak`, `onnx`), and the solvers `pgs`, `psor` and `newton` (default settings).
-///
-/// This is the CLI's registry plus `grid`, built here so that this crate does not depend on
-/// the CLI (whose deepcontact-onnx dependency forces the tract backend on).
+/// The full registry ([`deepcontact_experiments::full_registry`]): every provider and solver
+/// of this workspace, with their parameters (`psor:omega=1.2` works here as in the CLI).
 pub fn registry() -> Registry {
-    let mut registry = Registry::with_defaults();
-    deepcontact_grid::register(&mut registry);
-    deepcontact_onnx::register(&mut registry);
-    registry.register_solver(
-        "psor",
-        "projected SOR on the assembled Delassus matrix (default settings)",
-        |_| Ok(Box::new(PsorSolver::new())),
-    );
-    registry.register_solver(
-        "newton",
-        "semismooth Newton on the natural map (default settings)",
-        |_| Ok(Box::new(NewtonSolver::new())),
-    );
-    registry
+    deepcontact_experiments::full_registry()
 }
 
 /// The small test CNN of deepcontact-onnx (`warmstart/onnx/tests/data/tiny.onnx`: conv 3×3,
@@ -204,8 +186,8 @@ impl<W: WarmStart> WarmStart for Recorder<W> {
         self.inner.warm_start(ctx, out)
     }
 
-    fn observe(&mut self, ctx: &WarmStartContext<'_>, solved: &[Impulse]) {
-        self.inner.observe(ctx, solved)
+    fn observe(&mut self, ctx: &WarmStartContext<'_>, seen: &Observation<'_>) {
+        self.inner.observe(ctx, seen)
     }
 }
 

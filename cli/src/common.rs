@@ -1,60 +1,42 @@
-//! Options and helpers shared by the subcommands.
+//! Options shared by the subcommands, and the tool's error type.
 
 use clap::{Args, ValueEnum};
 use deepcontact_core::{ResidualNorm, SolverSettings, WorldSettings};
-use deepcontact_warmstart::Registry;
+use deepcontact_experiments::ExperimentError;
 
 /// Errors of the command-line tool: one line each, exit code 1.
 #[derive(Debug, thiserror::Error)]
 pub enum CliError {
-    /// From the core crate (bad scene, bad settings, failed step).
+    /// From the experiment library (and through it core, specs, files, figures).
     #[error(transparent)]
-    Core(#[from] deepcontact_core::CoreError),
-    /// From the registry (bad provider or solver spec).
-    #[error(transparent)]
-    Spec(#[from] deepcontact_warmstart::WarmstartError),
-    /// Reading or writing a file.
-    #[error("{path}: {source}")]
-    Io {
-        /// The file.
-        path: String,
-        /// The OS error.
-        #[source]
-        source: std::io::Error,
-    },
-    /// Drawing a figure.
-    #[error("plot {path}: {reason}")]
-    Plot {
-        /// The output file.
-        path: String,
-        /// What failed.
-        reason: String,
-    },
-    /// A soak check failed.
-    #[error("soak {warm_start}: step {step}: {what}")]
-    Soak {
-        /// The provider spec.
-        warm_start: String,
-        /// The step at which the check failed.
-        step: u64,
-        /// What was violated, with the body and values.
-        what: String,
-    },
+    Experiment(#[from] ExperimentError),
     /// A bad command-line value not caught by the parser.
     #[error("{0}")]
     Usage(String),
 }
 
+impl From<deepcontact_core::CoreError> for CliError {
+    fn from(e: deepcontact_core::CoreError) -> Self {
+        Self::Experiment(e.into())
+    }
+}
+
+impl From<deepcontact_core::SpecError> for CliError {
+    fn from(e: deepcontact_core::SpecError) -> Self {
+        Self::Experiment(e.into())
+    }
+}
+
 /// Norm of the stop rule.
 #[derive(Debug, Clone, Copy, ValueEnum)]
 pub enum NormArg {
-    /// max |Δλ|
+    /// max |Δλ| over the rows (the thesis text's rule).
     Inf,
-    /// sqrt(Σ Δλ²)
+    /// sqrt(Σ Δλ²) over the rows.
     L2,
 }
 
-/// Velocity-solver stop rule options shared by `simulate` and `compare`.
+/// Velocity-solver stop rule options shared by `simulate`, `compare` and `generate`.
 #[derive(Debug, Clone, Args)]
 pub struct SolverArgs {
     /// Velocity solver (registry spec, e.g. `pgs` or `pgs:block=false`).
@@ -100,87 +82,4 @@ impl SolverArgs {
             ..WorldSettings::default()
         }
     }
-}
-
-/// The registry with every provider and solver this build knows.
-pub fn registry() -> Registry {
-    let mut registry = Registry::with_defaults();
-    deepcontact_grid::register(&mut registry);
-    deepcontact_onnx::register(&mut registry);
-    {
-        // deepcontact-lcp: PSOR and Newton on the assembled Delassus matrix (faer).
-        use deepcontact_lcp::{
-            AssemblyMode, NewtonSettings, NewtonSolver, PsorSettings, PsorSolver,
-        };
-        use deepcontact_warmstart::{Params, WarmstartError};
-        fn invalid(p: &Params<'_>, param: &str, value: String, reason: &str) -> WarmstartError {
-            let (spec, param, reason) =
-                (p.name().to_string(), param.to_string(), reason.to_string());
-            WarmstartError::InvalidParameter {
-                spec,
-                param,
-                value,
-                reason,
-            }
-        }
-        fn assembly(p: &mut Params<'_>) -> Result<(AssemblyMode, usize), WarmstartError> {
-            let mode = match p.string("assembly") {
-                None | Some("auto") => AssemblyMode::Auto,
-                Some("dense") => AssemblyMode::Dense,
-                Some("sparse") => AssemblyMode::Sparse,
-                Some(v) => {
-                    return Err(invalid(
-                        p,
-                        "assembly",
-                        v.into(),
-                        "must be auto, dense or sparse",
-                    ));
-                }
-            };
-            let threshold = p.u64(
-                "dense_threshold",
-                deepcontact_lcp::DEFAULT_DENSE_THRESHOLD as u64,
-            )?;
-            Ok((mode, usize::try_from(threshold).unwrap_or(usize::MAX)))
-        }
-        registry.register_solver(
-            "psor",
-            "projected SOR on the assembled Delassus matrix; omega=1 (in (0,2); 1 = PGS without \
-             block solver), assembly=auto|dense|sparse, dense_threshold=128 (rows)",
-            |p| {
-                let omega = p.f64("omega", 1.0)?;
-                let (assembly, dense_threshold) = assembly(p)?;
-                let settings = PsorSettings {
-                    omega,
-                    assembly,
-                    dense_threshold,
-                    ..PsorSettings::default()
-                };
-                settings
-                    .validate()
-                    .map_err(|e| invalid(p, "omega", omega.to_string(), &e.to_string()))?;
-                Ok(Box::new(PsorSolver::with_settings(settings)))
-            },
-        );
-        registry.register_solver(
-            "newton",
-            "semismooth Newton on the natural map (faer LU, Armijo line search); reg=1e-10 \
-             (relative regularisation), assembly=auto|dense|sparse, dense_threshold=128 (rows)",
-            |p| {
-                let regularization = p.f64("reg", NewtonSettings::default().regularization)?;
-                let (assembly, dense_threshold) = assembly(p)?;
-                let settings = NewtonSettings {
-                    regularization,
-                    assembly,
-                    dense_threshold,
-                    ..NewtonSettings::default()
-                };
-                settings
-                    .validate()
-                    .map_err(|e| invalid(p, "reg", regularization.to_string(), &e.to_string()))?;
-                Ok(Box::new(NewtonSolver::with_settings(settings)))
-            },
-        );
-    }
-    registry
 }

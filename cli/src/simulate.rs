@@ -1,12 +1,10 @@
 //! `deepcontact simulate`: one scene, one warm start, a report per step.
 
-use std::time::Instant;
-
 use clap::Args;
-use deepcontact_core::{StepReport, World, scene};
-use deepcontact_pgs::PgsPositionSolver;
+use deepcontact_core::Registry;
+use deepcontact_experiments::simulate::{SimulateConfig, run_scene};
 
-use crate::common::{CliError, SolverArgs, registry};
+use crate::common::{CliError, SolverArgs};
 
 /// Options of `simulate`.
 #[derive(Debug, Clone, Args)]
@@ -40,80 +38,24 @@ pub struct SimulateArgs {
     pub every: u64,
 }
 
-/// Totals over a run.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Totals {
-    /// Steps run.
-    pub steps: u64,
-    /// Mean velocity iterations per step.
-    pub mean_iterations: f64,
-    /// Mean velocity iterations over steps 150–250 (or the last 40% of the run).
-    pub mean_iterations_late: f64,
-    /// Mean contact points per step.
-    pub mean_contacts: f64,
-    /// Mean ms per step.
-    pub ms_per_step: f64,
-    /// Nanoseconds of velocity solve per contact point per iteration.
-    pub ns_per_point_iteration: f64,
-    /// Warm-start fallbacks.
-    pub fallbacks: usize,
-    /// Steps that hit the iteration cap.
-    pub capped_steps: u64,
-}
-
-/// Runs a scene and calls `each` for every step report; returns the world and the totals.
-pub fn run_scene(
-    args: &SimulateArgs,
-    mut each: impl FnMut(&StepReport),
-) -> Result<(World, Totals), CliError> {
-    let registry = registry();
-    let mut warm = registry.build_provider(&args.warm_start)?;
-    let mut solver = registry.build_solver(&args.solver.solver)?;
-    let mut position = PgsPositionSolver::new();
-    let scene = scene::by_name(&args.scene, args.seed, args.bodies)?;
-    let mut world = scene.build(args.solver.world_settings())?;
-    let late_from = if args.steps >= 250 {
-        150
-    } else {
-        args.steps * 6 / 10
-    };
-    let mut t = Totals {
-        steps: args.steps,
-        ..Totals::default()
-    };
-    let (mut iters, mut late, mut late_n, mut contacts, mut point_iters, mut solve_s) =
-        (0u64, 0u64, 0u64, 0u64, 0.0, 0.0);
-    let t0 = Instant::now();
-    for s in 0..args.steps {
-        let r = world.step(&mut warm, &mut solver, &mut position)?;
-        iters += r.velocity_iterations as u64;
-        if s >= late_from {
-            late += r.velocity_iterations as u64;
-            late_n += 1;
+impl SimulateArgs {
+    /// The run these options describe.
+    pub fn config(&self) -> SimulateConfig {
+        SimulateConfig {
+            scene: self.scene.clone(),
+            bodies: self.bodies,
+            seed: self.seed,
+            steps: self.steps,
+            warm_start: self.warm_start.clone(),
+            solver: self.solver.solver.clone(),
+            world: self.solver.world_settings(),
         }
-        contacts += r.contacts as u64;
-        point_iters += r.contacts as f64 * r.velocity_iterations as f64;
-        solve_s += r.solve_seconds;
-        t.fallbacks += r.fallbacks;
-        t.capped_steps += u64::from(r.capped_islands > 0);
-        each(&r);
     }
-    let elapsed = t0.elapsed().as_secs_f64();
-    let n = args.steps.max(1) as f64;
-    t.mean_iterations = iters as f64 / n;
-    t.mean_iterations_late = late as f64 / late_n.max(1) as f64;
-    t.mean_contacts = contacts as f64 / n;
-    t.ms_per_step = elapsed * 1e3 / n;
-    t.ns_per_point_iteration = if point_iters > 0.0 {
-        solve_s * 1e9 / point_iters
-    } else {
-        0.0
-    };
-    Ok((world, t))
 }
 
 /// Runs `simulate`.
-pub fn run(args: SimulateArgs) -> Result<(), CliError> {
+pub fn run(args: SimulateArgs, registry: &Registry) -> Result<(), CliError> {
+    let config = args.config();
     let bar = if args.json {
         indicatif::ProgressBar::hidden()
     } else {
@@ -127,7 +69,7 @@ pub fn run(args: SimulateArgs) -> Result<(), CliError> {
     let mut rows = Vec::new();
     let every = args.every.max(1);
     let mut json_err = None;
-    let (world, totals) = run_scene(&args, |r| {
+    let (world, totals) = run_scene(&config, registry, |r| {
         if args.json {
             match serde_json::to_string(r) {
                 Ok(line) => println!("{line}"),
@@ -176,11 +118,7 @@ pub fn run(args: SimulateArgs) -> Result<(), CliError> {
              {:.2} ns per contact per iteration, capped steps {}, fallbacks {}",
             totals.steps,
             totals.mean_iterations,
-            if args.steps >= 250 {
-                150
-            } else {
-                args.steps * 6 / 10
-            },
+            config.late_from(),
             totals.mean_iterations_late,
             totals.mean_contacts,
             totals.ms_per_step,
@@ -190,7 +128,7 @@ pub fn run(args: SimulateArgs) -> Result<(), CliError> {
         );
     }
     if let Some(path) = &args.render {
-        crate::render::render_world(&world, path)?;
+        deepcontact_experiments::render::render_world(&world, path)?;
         if !args.json {
             println!("rendered {}", path.display());
         }

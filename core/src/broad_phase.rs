@@ -61,6 +61,22 @@ impl BroadPhase {
     /// Candidate pairs `(a, b)`, `a < b`, sorted, with at least one dynamic body and
     /// overlapping AABBs (enlarged by `margin`).
     pub fn find_pairs(&mut self, bodies: &[Body], margin: Real) -> &[(u32, u32)] {
+        self.compute_bounds(bodies, margin);
+        self.pairs.clear();
+        if bodies.len() < 2 {
+            return &self.pairs;
+        }
+        let inv = 1.0 / self.cell_size();
+        self.bin_bodies(inv);
+        self.cell_pairs(inv);
+        self.large_pairs(bodies.len() as u32);
+        self.sort_pairs(bodies.len());
+        self.pairs.dedup();
+        &self.pairs
+    }
+
+    /// Every body's AABB grown by `margin`, and its kind.
+    fn compute_bounds(&mut self, bodies: &[Body], margin: Real) {
         self.aabbs.clear();
         self.kinds.clear();
         self.kinds.extend(bodies.iter().map(|b| b.kind));
@@ -72,19 +88,21 @@ impl BroadPhase {
                 max: from_parry(aabb.maxs) + m,
             });
         }
-        self.pairs.clear();
-        if bodies.len() < 2 {
-            return &self.pairs;
-        }
-        // Cell size: twice the median extent, so a typical body covers 1-4 cells.
+    }
+
+    /// Cell size: twice the median extent, so a typical body covers 1-4 cells.
+    fn cell_size(&mut self) -> Real {
         let extents = &mut self.extents;
         extents.clear();
         extents.extend(self.aabbs.iter().map(|a| (a.max - a.min).max()));
         let mid = extents.len() / 2;
         extents.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
-        let cell = (2.0 * extents[mid]).max(1e-3);
-        let inv = 1.0 / cell;
+        (2.0 * extents[mid]).max(1e-3)
+    }
 
+    /// One entry per (cell, body) sorted by cell; bodies covering more than 16 cells go to
+    /// the large list instead.
+    fn bin_bodies(&mut self, inv: Real) {
         self.entries.clear();
         self.large.clear();
         // Bounding box of the occupied cells, for the counting sort.
@@ -110,12 +128,13 @@ impl BroadPhase {
             }
         }
         self.sort_entries((cx0, cy0), (cx1, cy1));
+    }
 
+    /// Overlapping pairs sharing a cell, each reported once: in the cell holding the
+    /// overlap's lower corner.
+    fn cell_pairs(&mut self, inv: Real) {
         let kinds = &self.kinds;
-        let movable = |i: u32| kinds[i as usize] != BodyKind::Static;
-        let dynamic_pair = |a: u32, b: u32| {
-            kinds[a as usize] == BodyKind::Dynamic || kinds[b as usize] == BodyKind::Dynamic
-        };
+        let dynamic_pair = |a: u32, b: u32| dynamic_pair(kinds, a, b);
         let mut start = 0;
         while start < self.entries.len() {
             let key = self.entries[start].0;
@@ -134,8 +153,6 @@ impl BroadPhase {
                     if !aa.overlaps(bb) {
                         continue;
                     }
-                    // Report the pair only in the cell holding the overlap's lower corner,
-                    // so pairs sharing several cells are found once.
                     let cx = (aa.min.x.max(bb.min.x) * inv).floor() as i64;
                     let cy = (aa.min.y.max(bb.min.y) * inv).floor() as i64;
                     if cell_key(cx, cy) == key {
@@ -145,8 +162,15 @@ impl BroadPhase {
             }
             start = end;
         }
+    }
+
+    /// Pairs of a large body with every other body (large ones once per pair).
+    fn large_pairs(&mut self, n: u32) {
+        let kinds = &self.kinds;
+        let movable = |i: u32| kinds[i as usize] != BodyKind::Static;
+        let dynamic_pair = |a: u32, b: u32| dynamic_pair(kinds, a, b);
         for (k, &l) in self.large.iter().enumerate() {
-            for i in 0..bodies.len() as u32 {
+            for i in 0..n {
                 if i == l || (self.large[..k].contains(&i)) {
                     continue;
                 }
@@ -158,9 +182,6 @@ impl BroadPhase {
                 }
             }
         }
-        self.sort_pairs(bodies.len());
-        self.pairs.dedup();
-        &self.pairs
     }
 
     /// Sorts the `(cell key, body)` entries into the order `sort_unstable` gives (key, then
@@ -243,6 +264,11 @@ impl BroadPhase {
             std::mem::swap(src, dst);
         }
     }
+}
+
+/// Whether a pair can collide at all: at least one of the two bodies is dynamic.
+fn dynamic_pair(kinds: &[BodyKind], a: u32, b: u32) -> bool {
+    kinds[a as usize] == BodyKind::Dynamic || kinds[b as usize] == BodyKind::Dynamic
 }
 
 #[cfg(test)]

@@ -8,10 +8,7 @@
 //! * [`WarmStart`] — supplies the first iterate of the velocity solver;
 //! * [`VelocitySolver`] (and [`PositionSolver`]) — solve a contact problem.
 //!
-//! One step of a [`World`] runs, in order: integrate velocities → broad phase →
-//! narrow phase (with impulses carried over by [`ContactId`]) → islands → per
-//! island: build the [`ContactProblem`], warm start, velocity solve, observe →
-//! integrate positions → position pass → [`StepReport`].
+//! One step of a [`World`] runs the [`Stage`]s in the order of [`Stage::ORDER`].
 //!
 //! All public math uses [`nalgebra`] with [`Real`] = `f64`; parry2d's glam
 //! types are confined to the [`math`] module.
@@ -25,6 +22,7 @@ pub mod island;
 pub mod math;
 pub mod narrow_phase;
 pub mod problem;
+pub mod registry;
 pub mod report;
 pub mod rng;
 pub mod scene;
@@ -37,13 +35,15 @@ pub use body::{Body, BodyDesc, BodyHandle, BodyKind, Material};
 pub use contact::{ContactId, Impulse};
 pub use error::CoreError;
 pub use math::{Real, Vector};
-pub use problem::{ContactPoint, ContactProblem, ProblemBody};
+pub use problem::{ContactPoint, ContactProblem, PointDesc, ProblemBody};
+pub use registry::{ProviderInfo, Registry, Spec, SpecError};
 pub use report::{SolveReport, StepReport};
 pub use shape::ShapeDesc;
 pub use solver::{
     PositionReport, PositionSettings, PositionSolver, ResidualNorm, SolverSettings, VelocitySolver,
 };
 pub use warm_start::{
-    CarriedWarmStart, GuardPolicy, WarmStart, WarmStartContext, WarmStartError, ZeroWarmStart,
+    CarriedWarmStart, GuardPolicy, Observation, WarmStart, WarmStartContext, WarmStartError,
+    ZeroWarmStart,
 };
-pub use world::{World, WorldSettings};
+pub use world::{Stage, World, WorldSettings};

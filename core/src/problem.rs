@@ -1,7 +1,45 @@
 //! [`ContactProblem`]: everything a velocity or position solver needs, and nothing of the world.
 //!
-//! A foreign engine can build one by hand with [`ContactProblem::add_body`] and
-//! [`ContactProblem::add_point`], which derive the anchors and effective masses.
+//! A foreign engine can build one by hand with [`ContactProblem::add_body`],
+//! [`ContactProblem::begin_manifold`] and [`ContactProblem::add_point`], which derive the
+//! anchors and effective masses.
+//!
+//! **Units and signs.** Lengths in m, velocities in m/s and rad/s, impulses in N·s. Each
+//! point has a unit normal `n` pointing from body A to body B; a normal impulse `λn ≥ 0`
+//! pushes B along `+n` and A along `−n` (contacts only push). The tangent is
+//! `t = (−n.y, n.x)` (`n` turned a quarter counter-clockwise); a positive tangent impulse
+//! pushes B along `+t`. Friction bounds `|λt| ≤ μ λn`.
+//!
+//! **A worked example:** three unit boxes stacked on the ground, falling at one step of
+//! gravity. Hand-built problems need no world ([`ProblemBody::NO_WORLD`] is the world index
+//! of their bodies) and no real [`ContactId`]s: solvers never read the ids; only a
+//! [`crate::World`] matches them between steps.
+//!
+//! ```
+//! use deepcontact_core::{ContactProblem, PointDesc, ProblemBody, Vector};
+//!
+//! let mut problem = ContactProblem::new();
+//! let ground = problem.add_body(ProblemBody::fixed(Vector::new(0.0, -0.5)));
+//! let falling = Vector::new(0.0, -0.0981); // one step of gravity at dt = 0.01
+//! let boxes: Vec<u32> = (0..3)
+//!     .map(|i| {
+//!         let centre = Vector::new(0.0, 0.5 + i as f64);
+//!         problem.add_body(ProblemBody::dynamic(centre, 0.0, falling, 0.0, 1.0, 1.0 / 6.0))
+//!     })
+//!     .collect();
+//! for (below, above) in [(ground, boxes[0]), (boxes[0], boxes[1]), (boxes[1], boxes[2])] {
+//!     let y = problem.bodies[above as usize].position.y - 0.5;
+//!     problem.begin_manifold();
+//!     for x in [-0.5, 0.5] {
+//!         // The normal points from the body below (A) up to the body above (B).
+//!         let desc = PointDesc::new(below, above, Vector::new(x, y), Vector::new(0.0, 1.0))
+//!             .friction(0.5);
+//!         problem.add_point(&desc).unwrap();
+//!     }
+//! }
+//! assert_eq!(problem.len(), 6);
+//! assert!(problem.validate().is_ok());
+//! ```
 
 use crate::contact::ContactId;
 use crate::error::CoreError;
@@ -10,7 +48,7 @@ use crate::math::{Real, Vector, cross};
 /// A body as the solver sees it (local to one problem).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ProblemBody {
-    /// Index of the body in the world it came from (`u32::MAX` if none).
+    /// Index of the body in the world it came from ([`Self::NO_WORLD`] if none).
     pub world_index: u32,
     /// Centre of mass at the time the contacts were computed.
     pub position: Vector,
@@ -24,6 +62,129 @@ pub struct ProblemBody {
     pub inv_mass: Real,
     /// Inverse moment of inertia (0 = cannot rotate).
     pub inv_inertia: Real,
+}
+
+impl ProblemBody {
+    /// The world index of a body that does not come from a [`crate::World`].
+    pub const NO_WORLD: u32 = u32::MAX;
+
+    /// An immovable body (zero inverse mass and inertia, at rest) at `position`.
+    pub fn fixed(position: Vector) -> Self {
+        Self {
+            world_index: Self::NO_WORLD,
+            position,
+            angle: 0.0,
+            linear_velocity: Vector::zeros(),
+            angular_velocity: 0.0,
+            inv_mass: 0.0,
+            inv_inertia: 0.0,
+        }
+    }
+
+    /// A moving body: centre of mass `position` (m), orientation `angle` (rad), velocities
+    /// before the contact solve (m/s, rad/s), mass (kg) and moment of inertia (kg·m²);
+    /// a mass or inertia of 0 or less, or infinite, gives an inverse of 0 (cannot move /
+    /// cannot rotate).
+    pub fn dynamic(
+        position: Vector,
+        angle: Real,
+        linear_velocity: Vector,
+        angular_velocity: Real,
+        mass: Real,
+        inertia: Real,
+    ) -> Self {
+        let inverse = |m: Real| {
+            if m > 0.0 && m.is_finite() {
+                1.0 / m
+            } else {
+                0.0
+            }
+        };
+        Self {
+            world_index: Self::NO_WORLD,
+            position,
+            angle,
+            linear_velocity,
+            angular_velocity,
+            inv_mass: inverse(mass),
+            inv_inertia: inverse(inertia),
+        }
+    }
+
+    /// The same body tagged with its index in a world.
+    pub fn with_world_index(mut self, index: u32) -> Self {
+        self.world_index = index;
+        self
+    }
+}
+
+/// Everything [`ContactProblem::add_point`] needs for one point; anchors, effective masses
+/// and the restitution bias are derived from it and the bodies.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PointDesc {
+    /// Identity across steps, used only by a world to carry impulses (default from
+    /// [`PointDesc::new`]: the ordered body pair, features 0).
+    pub id: ContactId,
+    /// Index of body A in [`ContactProblem::bodies`].
+    pub body_a: u32,
+    /// Index of body B in [`ContactProblem::bodies`].
+    pub body_b: u32,
+    /// Contact point in world coordinates (m).
+    pub point: Vector,
+    /// Unit normal pointing from A to B.
+    pub normal: Vector,
+    /// Signed distance, negative = penetration (m; default 0).
+    pub separation: Real,
+    /// Friction coefficient, already mixed (default 0.5, the thesis's).
+    pub friction: Real,
+    /// Restitution, already mixed (default 0).
+    pub restitution: Real,
+    /// Closing speed above which restitution applies (m/s; default 1, Box2D's).
+    pub restitution_threshold: Real,
+}
+
+impl PointDesc {
+    /// A point between bodies `body_a` and `body_b` at `point` with normal `normal` (from A to
+    /// B), touching (separation 0), friction 0.5, no restitution.
+    pub fn new(body_a: u32, body_b: u32, point: Vector, normal: Vector) -> Self {
+        Self {
+            id: ContactId {
+                body_a: body_a.min(body_b),
+                body_b: body_a.max(body_b),
+                feature_a: 0,
+                feature_b: 0,
+            },
+            body_a,
+            body_b,
+            point,
+            normal,
+            separation: 0.0,
+            friction: 0.5,
+            restitution: 0.0,
+            restitution_threshold: 1.0,
+        }
+    }
+    /// Sets the id.
+    pub fn id(mut self, id: ContactId) -> Self {
+        self.id = id;
+        self
+    }
+    /// Sets the separation (m, negative = penetration).
+    pub fn separation(mut self, separation: Real) -> Self {
+        self.separation = separation;
+        self
+    }
+    /// Sets the friction coefficient.
+    pub fn friction(mut self, friction: Real) -> Self {
+        self.friction = friction;
+        self
+    }
+    /// Sets the restitution and its threshold speed (m/s).
+    pub fn restitution(mut self, restitution: Real, threshold: Real) -> Self {
+        self.restitution = restitution;
+        self.restitution_threshold = threshold;
+        self
+    }
 }
 
 /// One contact point: one normal row and one friction row.
@@ -107,27 +268,62 @@ impl ContactProblem {
         (self.bodies.len() - 1) as u32
     }
 
-    /// Adds a point of the manifold currently being built (call [`Self::begin_manifold`] first),
-    /// deriving anchors, effective masses and the restitution bias
-    /// (threshold `restitution_threshold` m/s, Box2D uses 1).
+    /// Adds a point to the manifold begun by the last [`Self::begin_manifold`], deriving
+    /// anchors, effective masses and the restitution bias; returns the point's index.
     ///
-    /// # Panics
-    /// If `body_a` or `body_b` is not the index of a body already added with
-    /// [`Self::add_body`] (a programming error, like an out-of-range slice index).
-    /// Problems from untrusted sources should be checked with [`Self::validate`].
-    #[allow(clippy::too_many_arguments)]
-    pub fn add_point(
-        &mut self,
-        id: ContactId,
-        body_a: u32,
-        body_b: u32,
-        point: Vector,
-        normal: Vector,
-        separation: Real,
-        friction: Real,
-        restitution: Real,
-        restitution_threshold: Real,
-    ) {
+    /// Checked here, so that a mistake is reported where it is made: a manifold was begun and
+    /// has fewer than 2 points, both bodies exist and differ, the values are finite, the
+    /// normal has unit length (within 1e-3), friction and restitution are ≥ 0. The direction
+    /// of the normal cannot be checked (a wall's centre says nothing about its side): it must
+    /// point from A to B.
+    pub fn add_point(&mut self, desc: &PointDesc) -> Result<u32, CoreError> {
+        let index = self.points.len();
+        let bad = |why: &str| Err(CoreError::InvalidProblem(format!("point {index}: {why}")));
+        match self.manifolds.last() {
+            None => return bad("add_point before begin_manifold"),
+            Some(&(start, end)) if end - start >= 2 => {
+                return bad("a manifold has at most 2 points (call begin_manifold)");
+            }
+            Some(_) => {}
+        }
+        let nb = self.bodies.len() as u32;
+        if desc.body_a >= nb || desc.body_b >= nb || desc.body_a == desc.body_b {
+            return bad(&format!(
+                "bodies {} and {} (the problem has {nb}; they must differ)",
+                desc.body_a, desc.body_b
+            ));
+        }
+        let d = desc;
+        let values = [
+            d.point.x,
+            d.point.y,
+            d.normal.x,
+            d.normal.y,
+            d.separation,
+            d.friction,
+            d.restitution,
+            d.restitution_threshold,
+        ];
+        if values.iter().any(|v| !v.is_finite()) {
+            return bad("a non-finite value");
+        }
+        if (d.normal.norm() - 1.0).abs() > 1e-3 {
+            return bad(&format!("normal {:?} is not unit length", d.normal));
+        }
+        if d.friction < 0.0 || d.restitution < 0.0 || d.restitution_threshold < 0.0 {
+            return bad("negative friction, restitution or threshold");
+        }
+        let PointDesc {
+            id,
+            body_a,
+            body_b,
+            point,
+            normal,
+            separation,
+            friction,
+            restitution,
+            restitution_threshold,
+        } = *desc;
         let a = self.bodies[body_a as usize];
         let b = self.bodies[body_b as usize];
         let r_a = point - a.position;
@@ -168,6 +364,7 @@ impl ContactProblem {
         if let Some(m) = self.manifolds.last_mut() {
             m.1 = self.points.len() as u32;
         }
+        Ok(index as u32)
     }
 
     /// Starts a new manifold; the following [`Self::add_point`] calls belong to it.
@@ -247,5 +444,86 @@ impl ContactProblem {
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn two_bodies() -> ContactProblem {
+        let mut p = ContactProblem::new();
+        p.add_body(ProblemBody::fixed(Vector::new(0.0, -0.5)));
+        let v = Vector::new(0.0, -0.1);
+        p.add_body(ProblemBody::dynamic(
+            Vector::new(0.0, 0.5),
+            0.0,
+            v,
+            0.0,
+            1.0,
+            0.2,
+        ));
+        p
+    }
+
+    fn up() -> PointDesc {
+        PointDesc::new(0, 1, Vector::zeros(), Vector::new(0.0, 1.0))
+    }
+
+    #[test]
+    fn add_point_before_begin_manifold_is_an_error_naming_it() {
+        let mut p = two_bodies();
+        let err = p.add_point(&up()).unwrap_err().to_string();
+        assert!(err.contains("begin_manifold"), "{err}");
+        assert!(p.points.is_empty());
+    }
+
+    #[test]
+    fn add_point_refuses_unknown_or_equal_bodies_bad_normals_and_third_points() {
+        let mut p = two_bodies();
+        p.begin_manifold();
+        let unknown = PointDesc::new(0, 7, Vector::zeros(), Vector::new(0.0, 1.0));
+        assert!(
+            p.add_point(&unknown)
+                .unwrap_err()
+                .to_string()
+                .contains("bodies 0 and 7")
+        );
+        let same = PointDesc::new(1, 1, Vector::zeros(), Vector::new(0.0, 1.0));
+        assert!(p.add_point(&same).is_err());
+        let long = PointDesc::new(0, 1, Vector::zeros(), Vector::new(0.0, 2.0));
+        assert!(
+            p.add_point(&long)
+                .unwrap_err()
+                .to_string()
+                .contains("unit length")
+        );
+        let nan = up().separation(Real::NAN);
+        assert!(p.add_point(&nan).is_err());
+        let negative = up().friction(-0.1);
+        assert!(p.add_point(&negative).is_err());
+        assert_eq!(p.add_point(&up()).unwrap(), 0);
+        assert_eq!(p.add_point(&up()).unwrap(), 1);
+        assert!(
+            p.add_point(&up())
+                .unwrap_err()
+                .to_string()
+                .contains("at most 2")
+        );
+        assert!(p.validate().is_ok());
+    }
+
+    #[test]
+    fn point_desc_derives_masses_and_the_restitution_bias() {
+        let mut p = two_bodies();
+        p.begin_manifold();
+        let desc = up().restitution(0.5, 0.05);
+        p.add_point(&desc).unwrap();
+        let point = p.points[0];
+        // Body B (mass 1) at (0, 0.5), the point below its centre: no rotation along n.
+        assert!((point.normal_mass - 1.0).abs() < 1e-12);
+        // Closing at 0.1 m/s above the 0.05 m/s threshold: bias = -e vn = 0.05.
+        assert!((point.velocity_bias - 0.05).abs() < 1e-12);
+        assert_eq!(p.bodies[1].world_index, ProblemBody::NO_WORLD);
     }
 }

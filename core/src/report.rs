@@ -82,6 +82,46 @@ impl StepReport {
         (self.step_seconds - self.warm_start_seconds - self.solve_seconds).max(0.0)
     }
 
+    /// Adds one island's solve: iterations, cap, residual curves (∞-norm as the max over
+    /// islands, 2-norm as a running sum of squares until [`Self::finish_islands`]) and the
+    /// squared start error of each row (summed until [`Self::finish_islands`]).
+    pub fn add_island(
+        &mut self,
+        r: &SolveReport,
+        start: &[crate::Impulse],
+        solved: &[crate::Impulse],
+    ) {
+        self.contacts += solved.len();
+        self.velocity_iterations = self.velocity_iterations.max(r.iterations);
+        self.velocity_iterations_sum += u64::from(r.iterations);
+        self.capped_islands += usize::from(!r.converged);
+        self.natural_residual = self.natural_residual.max(r.natural_residual);
+        for (i, (&ri, &r2)) in r.residual_inf.iter().zip(&r.residual_l2).enumerate() {
+            if i < self.residual_curve.len() {
+                self.residual_curve[i] = self.residual_curve[i].max(ri);
+                self.residual_curve_l2[i] += r2 * r2;
+            } else {
+                self.residual_curve.push(ri);
+                self.residual_curve_l2.push(r2 * r2);
+            }
+        }
+        for (w, f) in start.iter().zip(solved) {
+            self.mse_normal += (w.normal - f.normal).powi(2);
+            self.mse_tangent += (w.tangent - f.tangent).powi(2);
+        }
+    }
+
+    /// Turns the sums of [`Self::add_island`] into the 2-norm curve and the mean squared errors.
+    pub fn finish_islands(&mut self) {
+        for v in &mut self.residual_curve_l2 {
+            *v = v.sqrt();
+        }
+        if self.contacts > 0 {
+            self.mse_normal /= self.contacts as Real;
+            self.mse_tangent /= self.contacts as Real;
+        }
+    }
+
     /// Residual at the end of the step's velocity solve (last value of the curve).
     pub fn final_residual(&self) -> Real {
         self.residual_curve.last().copied().unwrap_or(0.0)

@@ -12,7 +12,9 @@ pub enum ResidualNorm {
     /// `max |Δλ|` over all rows (default; what the thesis text describes).
     #[default]
     Infinity,
-    /// `sqrt(Σ Δλ²)` over all rows (closer to what the original code measured).
+    /// `sqrt(Σ Δλ²)` over all rows of the island. This is *not* the original code's rule,
+    /// which takes per contact `sqrt(Δλn² + max(0, Δλt)²)` (signed, decreasing friction
+    /// changes ignored) and stops on the largest of those over the contacts.
     L2,
 }
 

@@ -1,8 +1,40 @@
 //! The [`WarmStart`] plug-in point: the first iterate of the velocity solver.
 
 use crate::contact::Impulse;
-use crate::math::Real;
+use crate::math::{Real, Vector};
 use crate::problem::ContactProblem;
+use crate::report::SolveReport;
+
+/// What a provider learns after the solve of an island ([`WarmStart::observe`]).
+#[derive(Debug, Clone, Copy)]
+#[non_exhaustive]
+pub struct Observation<'a> {
+    /// The start the solver actually used: the provider's output, or zeros after a fallback.
+    pub start: &'a [Impulse],
+    /// The impulses the solver ended with, one per point (N·s).
+    pub solved: &'a [Impulse],
+    /// Whether the provider's output was rejected and replaced by zeros.
+    pub fell_back: bool,
+    /// The solve's report (iterations, residuals per iteration, natural residual).
+    pub report: &'a SolveReport,
+}
+
+impl<'a> Observation<'a> {
+    /// An observation of a solve that started from `start` and ended at `solved`.
+    pub fn new(
+        start: &'a [Impulse],
+        solved: &'a [Impulse],
+        fell_back: bool,
+        report: &'a SolveReport,
+    ) -> Self {
+        Self {
+            start,
+            solved,
+            fell_back,
+            report,
+        }
+    }
+}
 
 /// What a provider sees when asked for a warm start. Borrowed, so new data can be
 /// added as new fields without changing the trait's signature.
@@ -24,6 +56,9 @@ pub struct WarmStartContext<'a> {
     pub island_count: usize,
     /// Time step in seconds.
     pub dt: Real,
+    /// Gravity in m/s² (the world's; `(0, -9.81)` for a context made with [`Self::new`]
+    /// until [`Self::with_gravity`]).
+    pub gravity: Vector,
     /// The world being stepped, if the problem comes from one (`None` for hand-built problems).
     pub world: Option<&'a crate::World>,
 }
@@ -45,8 +80,15 @@ impl<'a> WarmStartContext<'a> {
             island: 0,
             island_count: 1,
             dt,
+            gravity: Vector::new(0.0, -9.81),
             world: None,
         }
+    }
+
+    /// Sets the gravity (m/s²).
+    pub fn with_gravity(mut self, gravity: Vector) -> Self {
+        self.gravity = gravity;
+        self
     }
 
     /// Attaches the world and island position (used by [`World::step`](crate::World::step)).
@@ -173,8 +215,19 @@ pub trait WarmStart: Send {
         out: &mut [Impulse],
     ) -> Result<(), WarmStartError>;
 
-    /// Sees the converged impulses of the island after the solve. Default: nothing.
-    fn observe(&mut self, _ctx: &WarmStartContext<'_>, _solved: &[Impulse]) {}
+    /// Sees the island after the solve: the start used, the solved impulses, whether a
+    /// fallback replaced the output, the solve report. Default: nothing.
+    fn observe(&mut self, _ctx: &WarmStartContext<'_>, _seen: &Observation<'_>) {}
+
+    /// A new world begins: forget what was learned from the previous one that does not carry
+    /// over (per-contact history, step counters). Default: nothing.
+    fn reset(&mut self) {}
+
+    /// Named numbers describing the provider's learned or adapted state (e.g. an online
+    /// scale factor), for reports. Default: none.
+    fn diagnostics(&self) -> Vec<(String, Real)> {
+        Vec::new()
+    }
 }
 
 impl<W: WarmStart + ?Sized> WarmStart for Box<W> {
@@ -188,8 +241,14 @@ impl<W: WarmStart + ?Sized> WarmStart for Box<W> {
     ) -> Result<(), WarmStartError> {
         (**self).warm_start(ctx, out)
     }
-    fn observe(&mut self, ctx: &WarmStartContext<'_>, solved: &[Impulse]) {
-        (**self).observe(ctx, solved)
+    fn observe(&mut self, ctx: &WarmStartContext<'_>, seen: &Observation<'_>) {
+        (**self).observe(ctx, seen)
+    }
+    fn reset(&mut self) {
+        (**self).reset()
+    }
+    fn diagnostics(&self) -> Vec<(String, Real)> {
+        (**self).diagnostics()
     }
 }
 

@@ -9,10 +9,10 @@ use crate::error::CoreError;
 use crate::island::Islands;
 use crate::math::{Real, Vector};
 use crate::narrow_phase::{NarrowPhase, RawContact};
-use crate::problem::{ContactProblem, ProblemBody};
+use crate::problem::{ContactProblem, PointDesc, ProblemBody};
 use crate::report::{SolveReport, StepReport};
 use crate::solver::{PositionSettings, PositionSolver, SolverSettings, VelocitySolver};
-use crate::warm_start::{GuardPolicy, WarmStart, WarmStartContext, check_output};
+use crate::warm_start::{GuardPolicy, Observation, WarmStart, WarmStartContext, check_output};
 
 /// Settings of a world. Defaults are the thesis's.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -279,7 +279,7 @@ impl World {
     }
 
     /// Builds the contact problems of the current contacts (after the narrow phase).
-    fn build_problems(&mut self, s: &mut Scratch) {
+    fn build_problems(&mut self, s: &mut Scratch) -> Result<(), CoreError> {
         let nb = self.bodies.len();
         s.dynamic.clear();
         s.dynamic.extend(self.bodies.iter().map(Body::is_dynamic));
@@ -337,17 +337,17 @@ impl World {
                 problem.begin_manifold();
                 for c in cs..ce {
                     let raw = &self.narrow.contacts[c as usize];
-                    problem.add_point(
-                        raw.id,
-                        la,
-                        lb,
-                        raw.point,
-                        raw.normal,
-                        raw.separation,
+                    problem.add_point(&PointDesc {
+                        id: raw.id,
+                        body_a: la,
+                        body_b: lb,
+                        point: raw.point,
+                        normal: raw.normal,
+                        separation: raw.separation,
                         friction,
                         restitution,
-                        threshold,
-                    );
+                        restitution_threshold: threshold,
+                    })?;
                     source.push(c);
                 }
             }
@@ -355,12 +355,12 @@ impl World {
                 s.local_index[b.world_index as usize] = u32::MAX;
             }
         }
+        Ok(())
     }
 
-    /// Advances the world by one step of `dt`:
-    /// integrate velocities → broad phase → narrow phase (impulses carried by id) → islands →
-    /// per island { problem → warm start → velocity solve → observe } → integrate positions →
-    /// position pass.
+    /// Advances the world by one step of `dt`, running the [`Stage`]s in the order of
+    /// [`Stage::ORDER`]. A failing stage ends the step with its error (the world keeps the
+    /// state that stage found).
     pub fn step(
         &mut self,
         warm_start: &mut dyn WarmStart,
@@ -369,160 +369,177 @@ impl World {
     ) -> Result<StepReport, CoreError> {
         let t_step = Instant::now();
         self.check_state()?;
-        let settings = self.settings;
-        settings.validate()?;
-        let dt = settings.dt;
+        self.settings.validate()?;
         let mut report = StepReport {
             step: self.step_index,
             ..StepReport::default()
         };
+        let mut plugins = Plugins {
+            warm_start,
+            solver,
+            position_solver,
+        };
+        let mut s = std::mem::take(&mut self.scratch);
+        let result = Stage::ORDER
+            .iter()
+            .try_for_each(|&stage| self.run_stage(stage, &mut s, &mut plugins, &mut report));
+        self.scratch = s;
+        result?;
+        self.step_index += 1;
+        report.step_seconds = t_step.elapsed().as_secs_f64();
+        Ok(report)
+    }
 
-        // 1. Integrate velocities (gravity only; no damping, as in the thesis).
+    /// Runs one stage of [`Self::step`].
+    fn run_stage(
+        &mut self,
+        stage: Stage,
+        s: &mut Scratch,
+        plugins: &mut Plugins<'_>,
+        report: &mut StepReport,
+    ) -> Result<(), CoreError> {
+        match stage {
+            Stage::IntegrateVelocities => self.integrate_velocities(),
+            Stage::Collide => self.collide(s),
+            Stage::Islands => {
+                self.build_problems(s)?;
+                report.islands = s.problems.len();
+            }
+            Stage::SolveIslands => {
+                for k in 0..s.problems.len() {
+                    self.solve_island(k, s, plugins, report)?;
+                }
+                report.finish_islands();
+            }
+            Stage::IntegratePositions => self.integrate_positions(),
+            Stage::PositionPass => self.position_pass(s, plugins.position_solver, report)?,
+            Stage::StoreImpulses => self.store_impulses(s),
+        }
+        Ok(())
+    }
+
+    /// Gravity only; no damping, as in the thesis.
+    fn integrate_velocities(&mut self) {
+        let dv = self.settings.dt * self.settings.gravity;
         for b in self
             .bodies
             .iter_mut()
             .filter(|b| b.kind == BodyKind::Dynamic)
         {
-            b.linear_velocity += dt * settings.gravity;
+            b.linear_velocity += dv;
         }
+    }
 
-        // 2-3. Broad and narrow phase.
-        let pairs = self.broad.find_pairs(&self.bodies, settings.prediction);
-        self.narrow
-            .collide(&self.bodies, pairs, settings.prediction);
-
-        // 4-5. Islands and their contact problems.
-        let mut s = std::mem::take(&mut self.scratch);
-        self.build_problems(&mut s);
-        let n_islands = s.problems.len();
-        report.islands = n_islands;
-        s.solved.clear();
-        s.solved.resize(self.narrow.contacts.len(), Impulse::ZERO);
-
+    /// Broad and narrow phase, then the previous step's impulses matched by contact id.
+    fn collide(&mut self, s: &mut Scratch) {
+        let prediction = self.settings.prediction;
+        let pairs = self.broad.find_pairs(&self.bodies, prediction);
+        self.narrow.collide(&self.bodies, pairs, prediction);
         self.persistent
             .match_contacts(&self.narrow.contacts, &mut s.matched);
-        let (mut se_n, mut se_t) = (0.0, 0.0);
-        let mut outcome = Ok(());
-        for k in 0..n_islands {
-            let n = s.problems[k].points.len();
-            report.contacts += n;
-            // Impulses carried over from the previous step by contact id.
-            s.carried.clear();
-            s.persisted.clear();
-            for &c in &s.point_source[k] {
-                match s.matched[c as usize] {
-                    Some(imp) => {
-                        s.carried.push(imp);
-                        s.persisted.push(true);
-                    }
-                    None => {
-                        s.carried.push(Impulse::ZERO);
-                        s.persisted.push(false);
-                    }
+        s.solved.clear();
+        s.solved.resize(self.narrow.contacts.len(), Impulse::ZERO);
+    }
+
+    /// One island: its carried impulses, the checked warm start, the velocity solve from it,
+    /// the provider's observation, and the solved velocities written back.
+    fn solve_island(
+        &mut self,
+        k: usize,
+        s: &mut Scratch,
+        plugins: &mut Plugins<'_>,
+        report: &mut StepReport,
+    ) -> Result<(), CoreError> {
+        let settings = self.settings;
+        let n = s.problems[k].points.len();
+        s.carried.clear();
+        s.persisted.clear();
+        for &c in &s.point_source[k] {
+            let matched = s.matched[c as usize];
+            s.carried.push(matched.unwrap_or(Impulse::ZERO));
+            s.persisted.push(matched.is_some());
+        }
+        s.warm.clear();
+        s.warm.resize(n, Impulse::ZERO);
+        let ctx = WarmStartContext::new(
+            &s.problems[k],
+            &s.carried,
+            &s.persisted,
+            self.step_index,
+            settings.dt,
+        )
+        .with_gravity(settings.gravity)
+        .with_world(self, k, s.problems.len());
+
+        // Warm start, checked before use.
+        let t0 = Instant::now();
+        let provided = plugins
+            .warm_start
+            .warm_start(&ctx, &mut s.warm)
+            .and_then(|_| check_output(&s.warm, n));
+        report.warm_start_seconds += t0.elapsed().as_secs_f64();
+        let fell_back = provided.is_err();
+        if let Err(e) = provided {
+            match settings.guard {
+                GuardPolicy::FallbackToZero => {
+                    report.fallbacks += 1;
+                    s.warm.fill(Impulse::ZERO);
                 }
-            }
-            s.warm.clear();
-            s.warm.resize(n, Impulse::ZERO);
-            let ctx = WarmStartContext::new(
-                &s.problems[k],
-                &s.carried,
-                &s.persisted,
-                self.step_index,
-                dt,
-            )
-            .with_world(self, k, n_islands);
-
-            // 6. Warm start, checked before use.
-            let t0 = Instant::now();
-            let provided = warm_start
-                .warm_start(&ctx, &mut s.warm)
-                .and_then(|_| check_output(&s.warm, n));
-            report.warm_start_seconds += t0.elapsed().as_secs_f64();
-            if let Err(e) = provided {
-                match settings.guard {
-                    GuardPolicy::FallbackToZero => {
-                        report.fallbacks += 1;
-                        s.warm.fill(Impulse::ZERO);
-                    }
-                    GuardPolicy::Error => {
-                        outcome = Err(CoreError::WarmStart {
-                            provider: warm_start.name().to_string(),
-                            step: self.step_index,
-                            island: k,
-                            source: e,
-                        });
-                        break;
-                    }
-                }
-            }
-
-            // 7. Velocity solve from the warm start.
-            s.impulses.clear();
-            s.impulses.extend_from_slice(&s.warm);
-            s.velocities.clear();
-            s.velocities
-                .resize(s.problems[k].bodies.len(), (Vector::zeros(), 0.0));
-            let t0 = Instant::now();
-            let solved = solver.solve(
-                &s.problems[k],
-                &settings.solver,
-                &mut s.impulses,
-                &mut s.velocities,
-                &mut s.report,
-            );
-            report.solve_seconds += t0.elapsed().as_secs_f64();
-            if let Err(e) = solved {
-                outcome = Err(e);
-                break;
-            }
-
-            // 8. The provider observes the solution.
-            warm_start.observe(&ctx, &s.impulses);
-
-            let r = &s.report;
-            report.velocity_iterations = report.velocity_iterations.max(r.iterations);
-            report.velocity_iterations_sum += r.iterations as u64;
-            report.capped_islands += usize::from(!r.converged);
-            report.natural_residual = report.natural_residual.max(r.natural_residual);
-            for (i, (&ri, &r2)) in r.residual_inf.iter().zip(&r.residual_l2).enumerate() {
-                if i < report.residual_curve.len() {
-                    report.residual_curve[i] = report.residual_curve[i].max(ri);
-                    report.residual_curve_l2[i] += r2 * r2;
-                } else {
-                    report.residual_curve.push(ri);
-                    report.residual_curve_l2.push(r2 * r2);
-                }
-            }
-            for (w, f) in s.warm.iter().zip(&s.impulses) {
-                se_n += (w.normal - f.normal).powi(2);
-                se_t += (w.tangent - f.tangent).powi(2);
-            }
-            for (p, imp) in s.point_source[k].iter().zip(&s.impulses) {
-                s.solved[*p as usize] = *imp;
-            }
-            // Write the solved velocities back.
-            let problem = &s.problems[k];
-            for (pb, &(v, w)) in problem.bodies.iter().zip(&s.velocities) {
-                let body = &mut self.bodies[pb.world_index as usize];
-                if body.kind == BodyKind::Dynamic {
-                    body.linear_velocity = v;
-                    body.angular_velocity = w;
+                GuardPolicy::Error => {
+                    return Err(CoreError::WarmStart {
+                        provider: plugins.warm_start.name().to_string(),
+                        step: self.step_index,
+                        island: k,
+                        source: e,
+                    });
                 }
             }
         }
-        if let Err(e) = outcome {
-            self.scratch = s;
-            return Err(e);
-        }
-        for v in &mut report.residual_curve_l2 {
-            *v = v.sqrt();
-        }
-        if report.contacts > 0 {
-            report.mse_normal = se_n / report.contacts as Real;
-            report.mse_tangent = se_t / report.contacts as Real;
-        }
 
-        // 9. Integrate positions, with Box2D's translation / rotation clamps.
+        // Velocity solve from the warm start.
+        s.impulses.clear();
+        s.impulses.extend_from_slice(&s.warm);
+        s.velocities.clear();
+        s.velocities
+            .resize(s.problems[k].bodies.len(), (Vector::zeros(), 0.0));
+        let t0 = Instant::now();
+        let solved = plugins.solver.solve(
+            &s.problems[k],
+            &settings.solver,
+            &mut s.impulses,
+            &mut s.velocities,
+            &mut s.report,
+        );
+        report.solve_seconds += t0.elapsed().as_secs_f64();
+        solved?;
+
+        plugins.warm_start.observe(
+            &ctx,
+            &Observation {
+                start: &s.warm,
+                solved: &s.impulses,
+                fell_back,
+                report: &s.report,
+            },
+        );
+        report.add_island(&s.report, &s.warm, &s.impulses);
+        for (p, imp) in s.point_source[k].iter().zip(&s.impulses) {
+            s.solved[*p as usize] = *imp;
+        }
+        for (pb, &(v, w)) in s.problems[k].bodies.iter().zip(&s.velocities) {
+            let body = &mut self.bodies[pb.world_index as usize];
+            if body.kind == BodyKind::Dynamic {
+                body.linear_velocity = v;
+                body.angular_velocity = w;
+            }
+        }
+        Ok(())
+    }
+
+    /// Positions from the solved velocities, with Box2D's translation and rotation clamps.
+    fn integrate_positions(&mut self) {
+        let settings = self.settings;
+        let dt = settings.dt;
         for b in self
             .bodies
             .iter_mut()
@@ -542,24 +559,24 @@ impl World {
             b.position += dt * v;
             b.angle += dt * w;
         }
+    }
 
-        // 10. Position pass per island (not warm-started).
+    /// The position pass per island (not warm-started).
+    fn position_pass(
+        &mut self,
+        s: &mut Scratch,
+        position_solver: &mut dyn PositionSolver,
+        report: &mut StepReport,
+    ) -> Result<(), CoreError> {
         let mut min_sep = Real::INFINITY;
-        for k in 0..n_islands {
-            let problem = &s.problems[k];
+        for problem in &s.problems {
             s.poses.clear();
             s.poses.extend(problem.bodies.iter().map(|pb| {
                 let b = &self.bodies[pb.world_index as usize];
                 (b.position, b.angle)
             }));
             let pr =
-                match position_solver.solve_positions(problem, &settings.position, &mut s.poses) {
-                    Ok(pr) => pr,
-                    Err(e) => {
-                        self.scratch = s;
-                        return Err(e);
-                    }
-                };
+                position_solver.solve_positions(problem, &self.settings.position, &mut s.poses)?;
             report.position_iterations = report.position_iterations.max(pr.iterations);
             min_sep = min_sep.min(pr.min_separation);
             for (pb, &(x, a)) in problem.bodies.iter().zip(&s.poses) {
@@ -571,8 +588,11 @@ impl World {
             }
         }
         report.min_separation = if min_sep.is_finite() { min_sep } else { 0.0 };
+        Ok(())
+    }
 
-        // Keep this step's impulses for the next step's matching.
+    /// Keeps this step's impulses, sorted by id, for the next step's matching.
+    fn store_impulses(&mut self, s: &Scratch) {
         self.persistent.impulses.clear();
         self.persistent.impulses.extend(
             self.narrow
@@ -582,10 +602,45 @@ impl World {
                 .map(|(c, imp)| (c.id, *imp)),
         );
         self.persistent.impulses.sort_unstable_by_key(|a| a.0);
-
-        self.scratch = s;
-        self.step_index += 1;
-        report.step_seconds = t_step.elapsed().as_secs_f64();
-        Ok(report)
     }
+}
+
+/// The plug-ins of one step.
+struct Plugins<'a> {
+    warm_start: &'a mut dyn WarmStart,
+    solver: &'a mut dyn VelocitySolver,
+    position_solver: &'a mut dyn PositionSolver,
+}
+
+/// The stages of [`World::step`]; [`Stage::ORDER`] is the order they run in, stated once.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stage {
+    /// Gravity into the dynamic bodies' velocities.
+    IntegrateVelocities,
+    /// Broad phase, narrow phase (parry2d manifolds, one [`ContactId`] per point) and the
+    /// previous step's impulses matched by id.
+    Collide,
+    /// Islands (union-find over touching dynamic bodies) and one [`ContactProblem`] each.
+    Islands,
+    /// Per island: warm start (checked, zeros on failure) → velocity solve → observe.
+    SolveIslands,
+    /// Positions from velocities, clamped per step.
+    IntegratePositions,
+    /// Non-linear Gauss-Seidel position correction per island.
+    PositionPass,
+    /// This step's impulses kept for the next step's matching.
+    StoreImpulses,
+}
+
+impl Stage {
+    /// The order of a step.
+    pub const ORDER: [Stage; 7] = [
+        Stage::IntegrateVelocities,
+        Stage::Collide,
+        Stage::Islands,
+        Stage::SolveIslands,
+        Stage::IntegratePositions,
+        Stage::PositionPass,
+        Stage::StoreImpulses,
+    ];
 }

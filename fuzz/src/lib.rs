@@ -7,13 +7,13 @@
 use std::path::Path;
 
 use deepcontact_core::math::Real;
+use deepcontact_core::registry::{Registry, Spec, split_spec_list};
 use deepcontact_core::{
-    ContactId, ContactProblem, Impulse, ProblemBody, ResidualNorm, SolveReport, SolverSettings,
-    Vector, VelocitySolver, WarmStartContext,
+    ContactId, ContactProblem, Impulse, Observation, PointDesc, ProblemBody, ResidualNorm,
+    SolveReport, SolverSettings, Vector, VelocitySolver, WarmStartContext,
 };
 use deepcontact_lcp::{NewtonSolver, PsorSettings, PsorSolver};
 use deepcontact_pgs::{Ordering, PgsSettings, PgsSolver};
-use deepcontact_warmstart::{Registry, Spec, split_spec_list};
 
 /// Reads the fuzz input as a stream; past the end it yields zeros.
 #[derive(Debug)]
@@ -88,7 +88,7 @@ pub fn problem_from(bytes: &mut Bytes<'_>) -> ContactProblem {
         match bytes.byte() % 10 {
             0 | 1 => p.begin_manifold(),
             2..=7 => {
-                // `add_point` indexes the bodies: keep the indices in range (a == b allowed).
+                // Indices in range; `add_point` refuses a == b and other inadmissible points.
                 let (a, b) = (u32::from(bytes.byte()) % n, u32::from(bytes.byte()) % n);
                 let normal = if bytes.byte() % 4 == 0 {
                     Vector::new(bytes.real(), bytes.real())
@@ -103,17 +103,19 @@ pub fn problem_from(bytes: &mut Bytes<'_>) -> ContactProblem {
                     feature_a: u64::from(k),
                     feature_b: 0,
                 };
-                p.add_point(
+                // Inadmissible points are refused here, with a typed error (the contract of
+                // `add_point`); the solvers then meet what passed.
+                let _ = p.add_point(&PointDesc {
                     id,
-                    a,
-                    b,
+                    body_a: a,
+                    body_b: b,
                     point,
                     normal,
-                    bytes.real(),
-                    bytes.real(),
-                    bytes.real(),
-                    bytes.real(),
-                );
+                    separation: bytes.real(),
+                    friction: bytes.real(),
+                    restitution: bytes.real(),
+                    restitution_threshold: bytes.real(),
+                });
             }
             8 => {
                 let (s, e) = (u32::from(bytes.byte() % 24), u32::from(bytes.byte() % 24));
@@ -265,45 +267,58 @@ pub fn small_problem() -> ContactProblem {
         feature_b: 0,
     };
     p.begin_manifold();
-    p.add_point(
-        id(ground, a, 0),
-        ground,
-        a,
-        Vector::new(-0.5, 0.0),
-        up,
-        -0.01,
-        0.5,
-        0.0,
-        1.0,
-    );
-    p.add_point(
-        id(ground, a, 1),
-        ground,
-        a,
-        Vector::new(0.5, 0.0),
-        up,
-        -0.01,
-        0.5,
-        0.0,
-        1.0,
-    );
+    p.add_point(&PointDesc {
+        id: id(ground, a, 0),
+        body_a: ground,
+        body_b: a,
+        point: Vector::new(-0.5, 0.0),
+        normal: up,
+        separation: -0.01,
+        friction: 0.5,
+        restitution: 0.0,
+        restitution_threshold: 1.0,
+    })
+    .expect("a valid point");
+    p.add_point(&PointDesc {
+        id: id(ground, a, 1),
+        body_a: ground,
+        body_b: a,
+        point: Vector::new(0.5, 0.0),
+        normal: up,
+        separation: -0.01,
+        friction: 0.5,
+        restitution: 0.0,
+        restitution_threshold: 1.0,
+    })
+    .expect("a valid point");
     p.begin_manifold();
-    p.add_point(
-        id(a, c, 2),
-        a,
-        c,
-        Vector::new(0.0, 1.0),
-        up,
-        -0.005,
-        0.3,
-        0.0,
-        1.0,
-    );
+    p.add_point(&PointDesc {
+        id: id(a, c, 2),
+        body_a: a,
+        body_b: c,
+        point: Vector::new(0.0, 1.0),
+        normal: up,
+        separation: -0.005,
+        friction: 0.3,
+        restitution: 0.0,
+        restitution_threshold: 1.0,
+    })
+    .expect("a valid point");
     p
 }
 
 /// Whether a spec asks for more work than a fuzz iteration should do (a huge iteration cap
 /// with a zero tolerance is a legitimate request, just a slow one).
+/// The solvers and baseline providers, each registered by its own crate (the CNN providers
+/// load model files, too slow to build once per fuzz input).
+pub fn registry() -> Registry {
+    let mut registry = Registry::empty();
+    deepcontact_pgs::register(&mut registry);
+    deepcontact_lcp::register(&mut registry);
+    deepcontact_warmstart::register(&mut registry);
+    registry
+}
+
 fn too_slow(spec: &Spec) -> bool {
     spec.params.iter().any(|(k, v)| {
         k.contains("iter") && !matches!(v.trim().parse::<u64>(), Ok(n) if n <= 10_000)
@@ -329,7 +344,7 @@ pub fn parse_specs(data: &[u8]) {
     let _ = split_spec_list(text);
     let _ = deepcontact_onnx::ModelCard::from_json(text, Path::new("fuzz.json"));
     let slow = text.parse::<Spec>().is_ok_and(|s| too_slow(&s));
-    let registry = Registry::with_defaults();
+    let registry = registry();
     let problem = small_problem();
     if let Ok(mut provider) = registry.build_provider(text) {
         if !slow {
@@ -338,7 +353,8 @@ pub fn parse_specs(data: &[u8]) {
             let ctx = WarmStartContext::new(&problem, &carried, &persisted, 1, 0.01);
             let mut out = vec![Impulse::ZERO; problem.len()];
             if provider.warm_start(&ctx, &mut out).is_ok() {
-                provider.observe(&ctx, &out);
+                let report = SolveReport::default();
+                provider.observe(&ctx, &Observation::new(&out, &out, false, &report));
             }
         }
     }

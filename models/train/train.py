@@ -30,13 +30,27 @@ from models import MODELS, parameter_count  # noqa: E402
 
 
 def seeds(text: str) -> list[int]:
+    """The seeds grammar of deepcontact (`deepcontact_experiments::seeds`): comma-separated
+    `a`, `a..b` (end exclusive) or `a..=b`; order kept; empty ranges and repeats are errors."""
     out: list[int] = []
-    for part in text.split(","):
-        if ".." in part:
+    for part in (p.strip() for p in text.split(",")):
+        if not part:
+            continue
+        if "..=" in part:
+            a, b = part.split("..=")
+            rng = range(int(a), int(b) + 1)
+        elif ".." in part:
             a, b = part.split("..")
-            out.extend(range(int(a), int(b)))
-        elif part.strip():
-            out.append(int(part))
+            rng = range(int(a), int(b))
+        else:
+            rng = range(int(part), int(part) + 1)
+        if len(rng) == 0:
+            raise ValueError(f"seeds `{text}`: `{part}` is an empty range")
+        out.extend(rng)
+    if not out:
+        raise ValueError(f"seeds `{text}`: no seed")
+    if len(set(out)) != len(out):
+        raise ValueError(f"seeds `{text}`: a seed is listed twice")
     return out
 
 

@@ -1,12 +1,13 @@
-//! `deepcontact compare` as a library: outputs, columns, and independence from the thread count.
+//! The comparison of deepcontact-experiments (what `deepcontact compare` runs): outputs, columns, and independence from the thread count.
 
 use std::path::PathBuf;
 
-use deepcontact_cli::common::CliError;
-use deepcontact_cli::compare::{
-    self, CURVES_COLUMNS, Config, Results, STEPS_COLUMNS, SUMMARY_COLUMNS, StepRecord, parse_seeds,
+use deepcontact_core::registry::{SpecError, split_spec_list};
+use deepcontact_experiments::ExperimentError;
+use deepcontact_experiments::compare::{
+    self, CURVES_COLUMNS, Config, Results, STEPS_COLUMNS, SUMMARY_COLUMNS, StepRecord,
 };
-use deepcontact_warmstart::{Registry, WarmstartError, split_spec_list};
+use deepcontact_experiments::seeds::parse_seeds;
 
 /// Two seeds and enough steps to get past the free fall (the first contacts come near step 33).
 fn small(threads: usize) -> Config {
@@ -45,8 +46,8 @@ fn assert_same_numbers(a: &Results, b: &Results) {
     }
     assert_eq!(compare::curves(a), compare::curves(b));
     assert_eq!(
-        compare::curves_csv(&compare::curves(a)),
-        compare::curves_csv(&compare::curves(b))
+        compare::curves_csv(&compare::curves(a)).unwrap(),
+        compare::curves_csv(&compare::curves(b)).unwrap()
     );
 }
 
@@ -195,7 +196,7 @@ fn several_solvers_get_a_solver_column_and_their_own_figures() {
 
 #[test]
 fn a_third_party_provider_is_compared_through_its_registry() {
-    let mut registry = Registry::with_defaults();
+    let mut registry = deepcontact_experiments::full_registry();
     registry.register_provider("half_bad", "bad halved", |_, r| {
         r.build_provider("bad:value=25")
     });
@@ -229,42 +230,45 @@ fn bad_input_is_a_typed_error() {
             warm_starts: split_spec_list("nope").unwrap(),
             ..base()
         }),
-        CliError::Spec(WarmstartError::UnknownProvider { .. })
+        ExperimentError::Spec(SpecError::UnknownProvider { .. })
     ));
     assert!(matches!(
         err(Config {
             solvers: split_spec_list("nope").unwrap(),
             ..base()
         }),
-        CliError::Spec(WarmstartError::UnknownSolver { .. })
+        ExperimentError::Spec(SpecError::UnknownSolver { .. })
     ));
     assert!(matches!(
         err(Config {
             warm_starts: split_spec_list("none,none").unwrap(),
             ..base()
         }),
-        CliError::Usage(_)
+        ExperimentError::Invalid(_)
     ));
     assert!(matches!(
         err(Config { steps: 0, ..base() }),
-        CliError::Usage(_)
+        ExperimentError::Invalid(_)
     ));
     assert!(matches!(
         err(Config {
             seeds: vec![],
             ..base()
         }),
-        CliError::Usage(_)
+        ExperimentError::Invalid(_)
     ));
     let mut bad_world = base();
     bad_world.world.solver.max_iterations = 0;
-    assert!(matches!(err(bad_world), CliError::Core(_)));
+    assert!(matches!(err(bad_world), ExperimentError::Core(_)));
 
     assert_eq!(parse_seeds("12345..12355").unwrap().len(), 10);
     assert_eq!(parse_seeds("3..=5").unwrap(), [3, 4, 5]);
     assert_eq!(parse_seeds("4, 2,9").unwrap(), [4, 2, 9]);
     assert_eq!(parse_seeds("8").unwrap(), [8]);
-    for bad in ["", "5..5", "a..b", "1..x", "-1", "1,,x"] {
-        assert!(matches!(parse_seeds(bad), Err(CliError::Usage(_))), "{bad}");
+    for bad in ["", "5..5", "a..b", "1..x", "-1", "1,,x", "1,1"] {
+        assert!(
+            matches!(parse_seeds(bad), Err(ExperimentError::Invalid(_))),
+            "{bad}"
+        );
     }
 }

@@ -6,7 +6,6 @@
 
 use deepcontact_core::scene;
 use deepcontact_tests::{build, run};
-use deepcontact_warmstart::Registry;
 
 /// FNV-1a 64 over the little-endian bytes of `words` (stable by definition, unlike
 /// `std::collections::hash_map::DefaultHasher`, whose algorithm may change between releases).
@@ -41,7 +40,9 @@ const PILE_12345_250_BUILTIN_PGS: u64 = 0xe32d_4759_00b5_0c98;
 
 fn pile_hash() -> (u64, usize) {
     let mut world = build(&scene::pile(12345, 100).unwrap());
-    let mut warm = Registry::with_defaults().build_provider("builtin").unwrap();
+    let mut warm = deepcontact_experiments::full_registry()
+        .build_provider("builtin")
+        .unwrap();
     let reports = run(&mut world, warm.as_mut(), 250, |_, _| {}).unwrap();
     assert_eq!(reports.len(), 250);
     assert!(reports.iter().all(|r| r.fallbacks == 0));

@@ -10,8 +10,8 @@
 
 use deepcontact_core::math::Real;
 use deepcontact_core::{
-    ContactId, ContactProblem, Impulse, ProblemBody, SolveReport, SolverSettings, Vector,
-    VelocitySolver,
+    ContactId, ContactProblem, Impulse, PointDesc, ProblemBody, SolveReport, SolverSettings,
+    Vector, VelocitySolver,
 };
 use deepcontact_lcp::{NewtonSolver, PsorSolver};
 use deepcontact_pgs::{Ordering, PgsSettings, PgsSolver};
@@ -137,7 +137,18 @@ fn build_problem(bodies: &[BodyGen], points: &[PointGen]) -> ContactProblem {
             feature_a: k as u64,
             feature_b: 0,
         };
-        p.add_point(id, a, b, at, normal, -0.01, friction, g.restitution, 1.0);
+        p.add_point(&PointDesc {
+            id,
+            body_a: a,
+            body_b: b,
+            point: at,
+            normal,
+            separation: -0.01,
+            friction,
+            restitution: g.restitution,
+            restitution_threshold: 1.0,
+        })
+        .unwrap();
         in_manifold += 1;
         prev = Some((a, b, normal, friction));
     }

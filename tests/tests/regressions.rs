@@ -9,8 +9,8 @@ use std::path::Path;
 
 use deepcontact_core::math::Real;
 use deepcontact_core::{
-    ContactId, ContactProblem, Impulse, ProblemBody, SolveReport, SolverSettings, Vector,
-    VelocitySolver,
+    ContactId, ContactProblem, Impulse, PointDesc, ProblemBody, SolveReport, SolverSettings,
+    Vector, VelocitySolver,
 };
 use deepcontact_pgs::PgsSolver;
 
@@ -110,17 +110,18 @@ fn regression_pgs_panicked_on_a_negative_normal_start() {
         feature_a: 0,
         feature_b: 0,
     };
-    p.add_point(
+    p.add_point(&PointDesc {
         id,
-        ground,
-        ball,
-        Vector::zeros(),
-        Vector::new(0.0, 1.0),
-        -0.01,
-        0.5,
-        0.0,
-        1.0,
-    );
+        body_a: ground,
+        body_b: ball,
+        point: Vector::zeros(),
+        normal: Vector::new(0.0, 1.0),
+        separation: -0.01,
+        friction: 0.5,
+        restitution: 0.0,
+        restitution_threshold: 1.0,
+    })
+    .unwrap();
     let mut imp = vec![Impulse::new(-1.0, 0.3)];
     let mut vel = vec![(Vector::zeros(), 0.0); 2];
     PgsSolver::new()

@@ -1,5 +1,5 @@
 //! Soak: the thesis pile for a long time with every baseline warm start
-//! (`deepcontact_cli::soak`; every step: bodies finite and inside the box, no fallback; after
+//! (`deepcontact_experiments::soak`; every step: bodies finite and inside the box, no fallback; after
 //! settling: kinetic energy under 1 % of the potential-energy scale, penetration under 5 cm).
 //!
 //! The full soak (20 000 steps per provider, 2 000 for the oracle) is the CLI check that CI
@@ -10,8 +10,8 @@
 //! cargo test --release -p deepcontact-tests --test soak -- --ignored --nocapture
 //! ```
 
-use deepcontact_cli::common::{CliError, registry};
-use deepcontact_cli::soak::{KE_FRACTION, soak_one};
+use deepcontact_experiments::soak::{KE_FRACTION, soak_one};
+use deepcontact_experiments::{ExperimentError, full_registry as registry};
 
 fn soak(spec: &str, steps: u64, settle: u64) {
     let run = soak_one(&registry(), spec, steps, settle, 12345, 100).unwrap();
@@ -32,7 +32,7 @@ fn soak_reports_the_first_violation_with_its_step() {
     // Checking the energy from step 0, while the circles still fall, must fail at once.
     let err = soak_one(&registry(), "none", 50, 0, 12345, 100).unwrap_err();
     match err {
-        CliError::Soak {
+        ExperimentError::Soak {
             warm_start,
             step,
             what,

@@ -665,7 +665,7 @@ pub(crate) fn sor_sweep(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use deepcontact_core::{ContactId, ProblemBody};
+    use deepcontact_core::{ContactId, PointDesc, ProblemBody};
 
     fn body(x: Real, y: Real, inv_mass: Real, inv_inertia: Real, v: Vector) -> ProblemBody {
         ProblemBody {
@@ -692,20 +692,32 @@ mod tests {
             feature_b: 0,
         };
         p.begin_manifold();
-        p.add_point(
-            id(1),
-            g,
-            a,
-            Vector::new(0.0, 0.0),
-            Vector::new(0.0, 1.0),
-            -0.01,
-            0.5,
-            0.0,
-            1.0,
-        );
+        p.add_point(&PointDesc {
+            id: id(1),
+            body_a: g,
+            body_b: a,
+            point: Vector::new(0.0, 0.0),
+            normal: Vector::new(0.0, 1.0),
+            separation: -0.01,
+            friction: 0.5,
+            restitution: 0.0,
+            restitution_threshold: 1.0,
+        })
+        .unwrap();
         p.begin_manifold();
         let n = Vector::new(0.6, 0.8);
-        p.add_point(id(2), a, b, Vector::new(0.3, 0.9), n, -0.01, 0.3, 0.0, 1.0);
+        p.add_point(&PointDesc {
+            id: id(2),
+            body_a: a,
+            body_b: b,
+            point: Vector::new(0.3, 0.9),
+            normal: n,
+            separation: -0.01,
+            friction: 0.3,
+            restitution: 0.0,
+            restitution_threshold: 1.0,
+        })
+        .unwrap();
         p
     }
 
@@ -775,17 +787,18 @@ mod tests {
         for k in 0..MAX_DENSE_ROWS / 2 + 1 {
             let b = p.add_body(body(k as Real, 1.0, 1.0, 1.0, Vector::zeros()));
             p.begin_manifold();
-            p.add_point(
+            p.add_point(&PointDesc {
                 id,
-                ground,
-                b,
-                Vector::new(k as Real, 0.5),
-                Vector::new(0.0, 1.0),
-                0.0,
-                0.5,
-                0.0,
-                1.0,
-            );
+                body_a: ground,
+                body_b: b,
+                point: Vector::new(k as Real, 0.5),
+                normal: Vector::new(0.0, 1.0),
+                separation: 0.0,
+                friction: 0.5,
+                restitution: 0.0,
+                restitution_threshold: 1.0,
+            })
+            .unwrap();
         }
         let mut d = Delassus::new();
         assert!(matches!(

@@ -29,6 +29,7 @@ mod error;
 mod exact;
 mod newton;
 mod psor;
+mod registry;
 
 pub use assembly::{AssemblyMode, DEFAULT_DENSE_THRESHOLD, Delassus, MAX_DENSE_ROWS};
 pub use error::LcpError;
@@ -36,5 +37,6 @@ pub use exact::{
     ContactState, EXACT_MAX_POINTS, EXACT_REGULARIZATION, ExactSolution, Violation, solve_exact,
     violation,
 };
-pub use newton::{NewtonSettings, NewtonSolver, NewtonStats};
+pub use newton::{NewtonSettings, NewtonSolver, NewtonStats, RETRY_REGULARIZATION};
 pub use psor::{PsorSettings, PsorSolver};
+pub use registry::register;

@@ -11,9 +11,11 @@
 #![warn(missing_docs)]
 
 mod position;
+mod registry;
 mod velocity;
 
 pub use position::PgsPositionSolver;
+pub use registry::register;
 pub use velocity::{LANES, Ordering, PgsSettings, PgsSolver};
 
 /// Errors of this crate (wrapped into [`deepcontact_core::CoreError`] at the trait boundary).

@@ -9,8 +9,8 @@
 
 use deepcontact_core::scene;
 use deepcontact_core::{Impulse, WarmStart, WarmStartContext, WarmStartError, WorldSettings};
+use deepcontact_core::{Registry, SpecError};
 use deepcontact_pgs::PgsPositionSolver;
-use deepcontact_warmstart::{Registry, WarmstartError};
 
 /// Last step's impulses (matched by contact id), multiplied by a factor.
 struct ScaledBuiltin {
@@ -42,11 +42,13 @@ impl WarmStart for ScaledBuiltin {
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     // Register the new provider beside the baselines, with a parameter: `scaled:factor=0.8`.
-    let mut registry = Registry::with_defaults();
+    let mut registry = Registry::empty();
+    deepcontact_pgs::register(&mut registry);
+    deepcontact_warmstart::register(&mut registry);
     registry.register_provider("scaled", "builtin times factor (default 0.9)", |p, _| {
         let factor = p.f64("factor", 0.9)?;
         if !(0.0..=10.0).contains(&factor) {
-            return Err(WarmstartError::InvalidParameter {
+            return Err(SpecError::InvalidParameter {
                 spec: "scaled".into(),
                 param: "factor".into(),
                 value: factor.to_string(),

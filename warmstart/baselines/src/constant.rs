@@ -2,7 +2,7 @@
 
 use deepcontact_core::{Impulse, Real, WarmStart, WarmStartContext, WarmStartError};
 
-use crate::error::WarmstartError;
+use deepcontact_core::SpecError;
 
 /// A constant warm start ("bad" in the thesis, which used (50, 50) N·s: far larger than
 /// any impulse of the pile, so the solver has to undo it).
@@ -29,8 +29,8 @@ impl ConstantWarmStart {
 
     /// A provider writing `impulse` everywhere, named `name`. The normal must be finite
     /// and ≥ 0 and the tangent finite.
-    pub fn new(name: &str, impulse: Impulse) -> Result<Self, WarmstartError> {
-        let invalid = |param: &str, value: Real, reason: &str| WarmstartError::InvalidParameter {
+    pub fn new(name: &str, impulse: Impulse) -> Result<Self, SpecError> {
+        let invalid = |param: &str, value: Real, reason: &str| SpecError::InvalidParameter {
             spec: name.into(),
             param: param.into(),
             value: value.to_string(),

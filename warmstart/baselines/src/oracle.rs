@@ -5,7 +5,7 @@ use deepcontact_core::{
     WarmStartContext, WarmStartError,
 };
 
-use crate::error::WarmstartError;
+use deepcontact_core::SpecError;
 
 /// Stop rule of the oracle's own solve.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -73,12 +73,9 @@ impl std::fmt::Debug for OracleWarmStart {
 impl OracleWarmStart {
     /// An oracle solving with `solver` under `config` (validated: cap ≥ 1, tolerance
     /// finite and ≥ 0).
-    pub fn new(
-        solver: Box<dyn VelocitySolver>,
-        config: OracleConfig,
-    ) -> Result<Self, WarmstartError> {
+    pub fn new(solver: Box<dyn VelocitySolver>, config: OracleConfig) -> Result<Self, SpecError> {
         let settings = config.settings();
-        settings.validate().map_err(|e| WarmstartError::Build {
+        settings.validate().map_err(|e| SpecError::Build {
             spec: "copy".into(),
             reason: e.to_string(),
         })?;

@@ -3,7 +3,7 @@
 use deepcontact_core::rng::PortableRng;
 use deepcontact_core::{Impulse, Real, WarmStart, WarmStartContext, WarmStartError};
 
-use crate::error::WarmstartError;
+use deepcontact_core::SpecError;
 
 /// Ranges and seed of [`RandomWarmStart`]. The defaults are the thesis's.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -31,8 +31,8 @@ impl Default for RandomConfig {
 
 impl RandomConfig {
     /// Rejects non-finite values, a negative `normal_min` or `tangent_max`, and an empty normal range.
-    pub fn validate(&self) -> Result<(), WarmstartError> {
-        let invalid = |param: &str, value: Real, reason: &str| WarmstartError::InvalidParameter {
+    pub fn validate(&self) -> Result<(), SpecError> {
+        let invalid = |param: &str, value: Real, reason: &str| SpecError::InvalidParameter {
             spec: "random".into(),
             param: param.into(),
             value: value.to_string(),
@@ -87,7 +87,7 @@ pub struct RandomWarmStart {
 
 impl RandomWarmStart {
     /// A provider with the given (validated) config.
-    pub fn new(config: RandomConfig) -> Result<Self, WarmstartError> {
+    pub fn new(config: RandomConfig) -> Result<Self, SpecError> {
         config.validate()?;
         Ok(Self {
             config,

@@ -1,8 +1,8 @@
 //! [`Rounded`]: a wrapper that rounds any provider's output to a number of decimals.
 
-use deepcontact_core::{Impulse, Real, WarmStart, WarmStartContext, WarmStartError};
+use deepcontact_core::{Impulse, Observation, Real, WarmStart, WarmStartContext, WarmStartError};
 
-use crate::error::WarmstartError;
+use deepcontact_core::SpecError;
 
 /// Rounds the impulses of the wrapped provider to `decimals` decimal places (half away
 /// from zero). `Rounded<OracleWarmStart>` with 2 and 0 decimals are the thesis's `copy2`
@@ -38,15 +38,15 @@ impl<W: WarmStart> Rounded<W> {
 
     /// Wraps `inner`; the name is the inner name followed by the number of decimals
     /// (`copy` → `copy2`). Errors if `decimals` exceeds [`Self::MAX_DECIMALS`].
-    pub fn new(inner: W, decimals: u32) -> Result<Self, WarmstartError> {
+    pub fn new(inner: W, decimals: u32) -> Result<Self, SpecError> {
         let name = format!("{}{decimals}", inner.name());
         Self::with_name(inner, decimals, &name)
     }
 
     /// Wraps `inner` under an explicit name.
-    pub fn with_name(inner: W, decimals: u32, name: &str) -> Result<Self, WarmstartError> {
+    pub fn with_name(inner: W, decimals: u32, name: &str) -> Result<Self, SpecError> {
         if decimals > Self::MAX_DECIMALS {
-            return Err(WarmstartError::InvalidParameter {
+            return Err(SpecError::InvalidParameter {
                 spec: inner.name().to_string(),
                 param: "decimals".into(),
                 value: decimals.to_string(),
@@ -108,7 +108,10 @@ impl<W: WarmStart> WarmStart for Rounded<W> {
         Ok(())
     }
 
-    fn observe(&mut self, ctx: &WarmStartContext<'_>, solved: &[Impulse]) {
-        self.inner.observe(ctx, solved);
+    fn observe(&mut self, ctx: &WarmStartContext<'_>, seen: &Observation<'_>) {
+        self.inner.observe(ctx, seen);
+    }
+    fn reset(&mut self) {
+        self.inner.reset();
     }
 }

@@ -9,8 +9,7 @@ use deepcontact_core::{
 };
 use deepcontact_pgs::PgsSolver;
 use deepcontact_warmstart::{
-    ConstantWarmStart, OracleConfig, OracleWarmStart, RandomConfig, RandomWarmStart, Registry,
-    Rounded,
+    ConstantWarmStart, OracleConfig, OracleWarmStart, RandomConfig, RandomWarmStart, Rounded,
 };
 
 fn provide(provider: &mut dyn WarmStart, problem: &ContactProblem) -> Vec<Impulse> {
@@ -67,7 +66,7 @@ fn random_is_in_range_seeded_and_reproducible() {
     assert_ne!(first, second);
 
     // Ranges are configurable through the registry.
-    let mut p = Registry::with_defaults()
+    let mut p = common::registry()
         .build_provider("random:seed=9,normal_min=1,normal_max=2,tangent_max=0.5")
         .unwrap();
     for imp in provide(&mut p, &problem) {
@@ -96,7 +95,7 @@ fn random_is_in_range_seeded_and_reproducible() {
 #[test]
 fn bad_is_constant_and_configurable() {
     let problem = common::column(3);
-    let r = Registry::with_defaults();
+    let r = common::registry();
     let out = provide(&mut r.build_provider("bad").unwrap(), &problem);
     assert_eq!(out, vec![Impulse::new(50.0, 50.0); 3]);
     let out = provide(&mut r.build_provider("bad:value=10").unwrap(), &problem);
@@ -265,7 +264,7 @@ fn rounding_wrapper_rounds_clamps_and_drops_negative_zero() {
 #[test]
 fn copy2_and_copy0_are_rounded_copies() {
     let problem = common::column(8);
-    let r = Registry::with_defaults();
+    let r = common::registry();
     let exact = provide(&mut r.build_provider("copy").unwrap(), &problem);
     for (spec, name, decimals) in [
         ("copy2", "copy2", 2),
@@ -296,7 +295,7 @@ fn copy2_and_copy0_are_rounded_copies() {
 #[test]
 fn copy_in_a_world_makes_every_solve_nearly_free() {
     use deepcontact_core::{WorldSettings, scene};
-    let r = Registry::with_defaults();
+    let r = common::registry();
     let mut world = scene::pile(7, 100)
         .unwrap()
         .build(WorldSettings::default())

@@ -1,11 +1,18 @@
 //! Building providers from specs, and the errors of bad specs.
 
+use deepcontact_core::registry::{SpecError, split_spec_list};
 use deepcontact_core::{Impulse, WarmStart, WarmStartContext, WarmStartError};
-use deepcontact_warmstart::{Registry, WarmstartError, split_spec_list};
+
+fn registry() -> deepcontact_core::Registry {
+    let mut r = deepcontact_core::Registry::empty();
+    deepcontact_pgs::register(&mut r);
+    deepcontact_warmstart::register(&mut r);
+    r
+}
 
 #[test]
 fn defaults_build_with_their_names_and_help() {
-    let r = Registry::with_defaults();
+    let r = registry();
     for (spec, name) in [
         ("none", "none"),
         ("builtin", "builtin"),
@@ -35,7 +42,7 @@ fn defaults_build_with_their_names_and_help() {
 
 #[test]
 fn the_default_list_parses() {
-    let r = Registry::with_defaults();
+    let r = registry();
     let specs =
         split_spec_list("none,builtin,random:seed=2,normal_max=4,bad,copy,copy2,copy0").unwrap();
     assert_eq!(specs.len(), 7);
@@ -46,9 +53,9 @@ fn the_default_list_parses() {
 
 #[test]
 fn unknown_names_and_parameters_are_typed_errors() {
-    let r = Registry::with_defaults();
+    let r = registry();
     match r.build_provider("nope") {
-        Err(WarmstartError::UnknownProvider { name, known }) => {
+        Err(SpecError::UnknownProvider { name, known }) => {
             assert_eq!(name, "nope");
             assert!(
                 known.contains("copy0") && known.contains("random"),
@@ -58,7 +65,7 @@ fn unknown_names_and_parameters_are_typed_errors() {
         other => panic!("{:?}", other.map(|p| p.name().to_string())),
     }
     match r.build_provider("random:sed=3") {
-        Err(WarmstartError::UnknownParameter {
+        Err(SpecError::UnknownParameter {
             spec,
             param,
             accepted,
@@ -73,25 +80,25 @@ fn unknown_names_and_parameters_are_typed_errors() {
     }
     assert!(matches!(
         r.build_provider("copy2:decimals=3"),
-        Err(WarmstartError::UnknownParameter { .. })
+        Err(SpecError::UnknownParameter { .. })
     ));
     assert!(matches!(
         r.build_provider("none:x=1"),
-        Err(WarmstartError::UnknownParameter { .. })
+        Err(SpecError::UnknownParameter { .. })
     ));
     assert!(matches!(
         r.build_provider("copy:solver=nope"),
-        Err(WarmstartError::UnknownSolver { .. })
+        Err(SpecError::UnknownSolver { .. })
     ));
     assert!(matches!(
         r.build_provider("random:"),
-        Err(WarmstartError::MalformedSpec { .. })
+        Err(SpecError::MalformedSpec { .. })
     ));
 }
 
 #[test]
 fn bad_values_are_typed_errors() {
-    let r = Registry::with_defaults();
+    let r = registry();
     for (spec, param) in [
         ("random:seed=abc", "seed"),
         ("random:seed=-1", "seed"),
@@ -109,7 +116,7 @@ fn bad_values_are_typed_errors() {
         ("copy:solver=pgs:block=maybe", "block"),
     ] {
         match r.build_provider(spec) {
-            Err(WarmstartError::InvalidParameter { param: p, .. }) => {
+            Err(SpecError::InvalidParameter { param: p, .. }) => {
                 assert_eq!(p, param, "{spec}")
             }
             Err(e) => panic!("{spec}: unexpected error {e}"),
@@ -139,7 +146,7 @@ impl WarmStart for Half {
 
 #[test]
 fn third_party_providers_register_and_build() {
-    let mut r = Registry::with_defaults();
+    let mut r = registry();
     r.register_provider("half", "builtin halved", |_, _| Ok(Box::new(Half)));
     // A wrapper around a registered provider, built through the registry it is given.
     r.register_provider("rounded_random", "random rounded", |p, reg| {

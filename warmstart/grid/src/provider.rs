@@ -2,8 +2,8 @@
 //! particles. With the `copy` oracle inside it is the thesis's "grid" oracle: the best a
 //! CNN that predicts impulse grids could do, given the transfer's losses.
 
-use deepcontact_core::{Impulse, Vector, WarmStart, WarmStartContext, WarmStartError};
-use deepcontact_warmstart::{Params, Registry, WarmstartError};
+use deepcontact_core::registry::{Params, ProviderInfo, Registry, SpecError};
+use deepcontact_core::{Impulse, Observation, Vector, WarmStart, WarmStartContext, WarmStartError};
 
 use crate::error::GridError;
 use crate::kernel::Kernel;
@@ -51,11 +51,11 @@ impl GridFilterConfig {
     }
 
     /// Reads `res`, `h`, `kernel`, `sigma`, `transfer` and `search` from a registry spec.
-    pub fn from_params(p: &mut Params<'_>) -> Result<Self, WarmstartError> {
+    pub fn from_params(p: &mut Params<'_>) -> Result<Self, SpecError> {
         let d = Self::default();
         let spacing = p.f64("res", d.spacing)?;
         let h = p.f64("h", d.h)?;
-        let invalid = |param: &str, value: &str, reason: String| WarmstartError::InvalidParameter {
+        let invalid = |param: &str, value: &str, reason: String| SpecError::InvalidParameter {
             spec: "grid".into(),
             param: param.into(),
             value: value.into(),
@@ -330,8 +330,11 @@ impl WarmStart for GridFiltered {
             .map_err(|e| WarmStartError::Provider(format!("{}: {e}", self.name)))
     }
 
-    fn observe(&mut self, ctx: &WarmStartContext<'_>, solved: &[Impulse]) {
-        self.inner.observe(ctx, solved);
+    fn observe(&mut self, ctx: &WarmStartContext<'_>, seen: &Observation<'_>) {
+        self.inner.observe(ctx, seen);
+    }
+    fn reset(&mut self) {
+        self.inner.reset();
     }
 }
 
@@ -342,7 +345,9 @@ impl WarmStart for GridFiltered {
 /// exact), `inner` (a provider name without parameters, default copy).
 ///
 /// ```
-/// let mut registry = deepcontact_warmstart::Registry::with_defaults();
+/// let mut registry = deepcontact_core::Registry::empty();
+/// deepcontact_pgs::register(&mut registry);
+/// deepcontact_warmstart::register(&mut registry);
 /// deepcontact_grid::register(&mut registry);
 /// let p = registry.build_provider("grid:inner=builtin,res=0.125").unwrap();
 /// assert_eq!(p.name(), "grid:res=0.125,inner=builtin");
@@ -352,14 +357,17 @@ impl WarmStart for GridFiltered {
 pub fn register(registry: &mut Registry) {
     registry.register_provider(
         "grid",
-        "copy -> particles-to-grid -> grid-to-particles (thesis grid oracle); res=0.25, h=0.5, \
-         kernel=poly6|spiky|gaussian, sigma=h/3, transfer=sph|bilinear, search=exact|kdtree, inner=copy",
+        ProviderInfo::new(
+            "copy -> particles-to-grid -> grid-to-particles (thesis grid oracle); res=0.25, h=0.5, \
+             kernel=poly6|spiky|gaussian, sigma=h/3, transfer=sph|bilinear, search=exact|kdtree, inner=copy",
+        )
+        .oracle(),
         |p, reg| {
             let config = GridFilterConfig::from_params(p)?;
             let inner_spec = p.string("inner").unwrap_or("copy");
             let inner = reg.build_provider(inner_spec)?;
             let mut provider = GridFiltered::new(inner, config)
-                .map_err(|e| WarmstartError::Build { spec: "grid".into(), reason: e.to_string() })?;
+                .map_err(|e| SpecError::Build { spec: "grid".into(), reason: e.to_string() })?;
             if inner_spec != "copy" {
                 let name = config.name();
                 let sep = if name.contains(':') { ',' } else { ':' };

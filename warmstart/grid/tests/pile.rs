@@ -220,7 +220,9 @@ fn grid_provider_output_is_admissible_and_uses_the_box_grid() {
 
 #[test]
 fn registry_grid_runs_a_world() {
-    let mut registry = deepcontact_warmstart::Registry::with_defaults();
+    let mut registry = deepcontact_core::Registry::empty();
+    deepcontact_pgs::register(&mut registry);
+    deepcontact_warmstart::register(&mut registry);
     register(&mut registry);
     // `inner=builtin` keeps this independent of the oracle; the default inner is `copy`.
     let mut provider = registry

@@ -8,7 +8,9 @@
 //! Backends (see [`backend`]): tract (pure Rust, default) or ONNX Runtime (`load-dynamic`).
 //!
 //! ```no_run
-//! let mut registry = deepcontact_warmstart::Registry::with_defaults();
+//! let mut registry = deepcontact_core::Registry::empty();
+//! deepcontact_pgs::register(&mut registry);
+//! deepcontact_warmstart::register(&mut registry);
 //! deepcontact_onnx::register(&mut registry);
 //! let provider = registry.build_provider("pressure").unwrap();
 //! assert_eq!(provider.name(), "pressure");

@@ -2,18 +2,18 @@
 
 use std::path::Path;
 
-use deepcontact_warmstart::{Params, Registry, WarmstartError};
+use deepcontact_core::registry::{Params, ProviderInfo, Registry, SpecError};
 
 use crate::backend::Backend;
 use crate::model::ModelSource;
 use crate::provider::{CnnWarmStart, PEAK, PRESSURE, ProviderOptions, ShippedModel};
 
-fn options(p: &mut Params<'_>) -> Result<ProviderOptions, WarmstartError> {
+fn options(p: &mut Params<'_>) -> Result<ProviderOptions, SpecError> {
     let mut options = ProviderOptions::default();
     if let Some(v) = p.string("backend") {
         options.backend = v
             .parse::<Backend>()
-            .map_err(|e| WarmstartError::InvalidParameter {
+            .map_err(|e| SpecError::InvalidParameter {
                 spec: p.name().to_string(),
                 param: "backend".into(),
                 value: v.into(),
@@ -23,20 +23,24 @@ fn options(p: &mut Params<'_>) -> Result<ProviderOptions, WarmstartError> {
     Ok(options)
 }
 
-fn build_error(spec: &str, e: crate::OnnxError) -> WarmstartError {
-    WarmstartError::Build {
+fn build_error(spec: &str, e: crate::OnnxError) -> SpecError {
+    SpecError::Build {
         spec: spec.to_string(),
         reason: e.to_string(),
     }
 }
 
 fn shipped(registry: &mut Registry, model: ShippedModel, help: &str) {
-    registry.register_provider(model.name, help, move |p, _| {
-        let options = options(p)?;
-        Ok(Box::new(
-            CnnWarmStart::shipped(model, options).map_err(|e| build_error(model.name, e))?,
-        ))
-    });
+    registry.register_provider(
+        model.name,
+        ProviderInfo::new(help).learned(),
+        move |p, _| {
+            let options = options(p)?;
+            Ok(Box::new(
+                CnnWarmStart::shipped(model, options).map_err(|e| build_error(model.name, e))?,
+            ))
+        },
+    );
 }
 
 /// Registers `pressure`, `peak` (the shipped models in `models/`) and `onnx:path=...` (any
@@ -55,10 +59,13 @@ pub fn register(registry: &mut Registry) {
     );
     registry.register_provider(
         "onnx",
-        "any ONNX model with a model card: path=model.onnx[,card=card.json][,name=...][,backend=tract|onnxruntime]",
+        ProviderInfo::new(
+            "any ONNX model with a model card: path=model.onnx[,card=card.json][,name=...][,backend=tract|onnxruntime]",
+        )
+        .learned(),
         |p, _| {
             let Some(path) = p.string("path") else {
-                return Err(WarmstartError::Build {
+                return Err(SpecError::Build {
                     spec: "onnx".into(),
                     reason: "needs path=<model.onnx> (with a card beside it, same name .json)".into(),
                 });

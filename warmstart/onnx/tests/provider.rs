@@ -219,7 +219,9 @@ fn unknown_backend_and_registry_errors() {
         "nope".parse::<Backend>(),
         Err(OnnxError::UnknownBackend { .. })
     ));
-    let mut registry = deepcontact_warmstart::Registry::with_defaults();
+    let mut registry = deepcontact_core::Registry::empty();
+    deepcontact_pgs::register(&mut registry);
+    deepcontact_warmstart::register(&mut registry);
     deepcontact_onnx::register(&mut registry);
     assert!(registry.build_provider("onnx").is_err());
     assert!(
@@ -361,7 +363,9 @@ fn shipped_models_load_and_run_on_a_pile_step() {
     if cannot_run() {
         return;
     }
-    let mut registry = deepcontact_warmstart::Registry::with_defaults();
+    let mut registry = deepcontact_core::Registry::empty();
+    deepcontact_pgs::register(&mut registry);
+    deepcontact_warmstart::register(&mut registry);
     deepcontact_onnx::register(&mut registry);
     let mut world = deepcontact_core::scene::pile(12345, 100)
         .unwrap()

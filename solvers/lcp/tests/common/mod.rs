@@ -8,8 +8,8 @@ use std::sync::OnceLock;
 use deepcontact_core::math::{Real, Vector};
 use deepcontact_core::rng::PortableRng;
 use deepcontact_core::{
-    CarriedWarmStart, ContactId, ContactProblem, Impulse, ProblemBody, SolveReport, SolverSettings,
-    VelocitySolver, WorldSettings, scene,
+    CarriedWarmStart, ContactId, ContactProblem, Impulse, PointDesc, ProblemBody, SolveReport,
+    SolverSettings, VelocitySolver, WorldSettings, scene,
 };
 use deepcontact_pgs::{PgsPositionSolver, PgsSolver};
 
@@ -98,7 +98,18 @@ pub fn random_problem(seed: u64, kind: Kind) -> ContactProblem {
             } else {
                 0.0
             };
-            p.add_point(id, a, b, at, n, -0.01, friction, restitution, 0.5);
+            p.add_point(&PointDesc {
+                id,
+                body_a: a,
+                body_b: b,
+                point: at,
+                normal: n,
+                separation: -0.01,
+                friction,
+                restitution,
+                restitution_threshold: 0.5,
+            })
+            .unwrap();
         };
     match kind {
         Kind::Well => {

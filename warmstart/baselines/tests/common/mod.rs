@@ -1,6 +1,6 @@
 //! A hand-built contact problem shared by the tests.
 
-use deepcontact_core::{ContactId, ContactProblem, ProblemBody, Vector};
+use deepcontact_core::{ContactId, ContactProblem, PointDesc, ProblemBody, Registry, Vector};
 
 /// A column of `n` unit-diameter circles (density 1) on static ground, falling at
 /// 0.0981 m/s (one step of gravity), the top one also sliding sideways: every point has
@@ -31,23 +31,32 @@ pub fn column(n: usize) -> ContactProblem {
             inv_inertia: 1.0 / inertia,
         });
         p.begin_manifold();
-        p.add_point(
-            ContactId {
+        p.add_point(&PointDesc {
+            id: ContactId {
                 body_a: below,
                 body_b: ball,
                 feature_a: 0,
                 feature_b: 0,
             },
-            below,
-            ball,
-            Vector::new(0.0, i as f64),
-            Vector::new(0.0, 1.0),
-            0.0,
-            0.5,
-            0.0,
-            1.0,
-        );
+            body_a: below,
+            body_b: ball,
+            point: Vector::new(0.0, i as f64),
+            normal: Vector::new(0.0, 1.0),
+            separation: 0.0,
+            friction: 0.5,
+            restitution: 0.0,
+            restitution_threshold: 1.0,
+        })
+        .unwrap();
         below = ball;
     }
     p
+}
+
+/// The baseline providers and the PGS solver their oracles use.
+pub fn registry() -> Registry {
+    let mut r = Registry::empty();
+    deepcontact_pgs::register(&mut r);
+    deepcontact_warmstart::register(&mut r);
+    r
 }

@@ -4,7 +4,7 @@ use std::collections::BTreeMap;
 use std::fmt;
 use std::str::FromStr;
 
-use crate::error::WarmstartError;
+use super::SpecError;
 
 /// A parsed spec: a name and its parameters.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
@@ -16,10 +16,10 @@ pub struct Spec {
 }
 
 impl FromStr for Spec {
-    type Err = WarmstartError;
+    type Err = SpecError;
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        let bad = |reason: &str| WarmstartError::MalformedSpec {
+        let bad = |reason: &str| SpecError::MalformedSpec {
             spec: s.to_string(),
             reason: reason.to_string(),
         };
@@ -77,7 +77,7 @@ impl fmt::Display for Spec {
 /// Splits a comma-separated list of specs. A comma also separates parameters, so a
 /// piece of the form `key=value` without a `:` continues the previous spec:
 /// `copy,grid:res=0.125,h=0.25,builtin` → `copy`, `grid:res=0.125,h=0.25`, `builtin`.
-pub fn split_spec_list(list: &str) -> Result<Vec<Spec>, WarmstartError> {
+pub fn split_spec_list(list: &str) -> Result<Vec<Spec>, SpecError> {
     let mut out: Vec<String> = Vec::new();
     for piece in list.split(',') {
         let piece = piece.trim();
@@ -91,7 +91,7 @@ pub fn split_spec_list(list: &str) -> Result<Vec<Spec>, WarmstartError> {
                     prev.push_str(piece);
                 }
                 _ => {
-                    return Err(WarmstartError::MalformedSpec {
+                    return Err(SpecError::MalformedSpec {
                         spec: piece.to_string(),
                         reason: "parameter without a provider (write name:key=value)".into(),
                     });
@@ -125,8 +125,9 @@ impl<'a> Params<'a> {
         &self.spec.name
     }
 
-    fn invalid(&self, key: &str, value: &str, reason: impl Into<String>) -> WarmstartError {
-        WarmstartError::InvalidParameter {
+    /// The error for parameter `key` given as `value`, rejected for `reason`.
+    pub fn invalid(&self, key: &str, value: &str, reason: impl Into<String>) -> SpecError {
+        SpecError::InvalidParameter {
             spec: self.spec.name.clone(),
             param: key.to_string(),
             value: value.to_string(),
@@ -140,8 +141,21 @@ impl<'a> Params<'a> {
         self.spec.params.get(key).map(String::as_str)
     }
 
+    /// A parameter that must be one of `options`; `None` when absent.
+    pub fn choice(
+        &mut self,
+        key: &'static str,
+        options: &[&str],
+    ) -> Result<Option<&'a str>, SpecError> {
+        match self.string(key) {
+            None => Ok(None),
+            Some(v) if options.contains(&v) => Ok(Some(v)),
+            Some(v) => Err(self.invalid(key, v, format!("must be one of {}", options.join(", ")))),
+        }
+    }
+
     /// A finite float parameter, or `default`.
-    pub fn f64(&mut self, key: &'static str, default: f64) -> Result<f64, WarmstartError> {
+    pub fn f64(&mut self, key: &'static str, default: f64) -> Result<f64, SpecError> {
         match self.string(key) {
             None => Ok(default),
             Some(v) => match v.parse::<f64>() {
@@ -153,7 +167,7 @@ impl<'a> Params<'a> {
     }
 
     /// A boolean parameter (`true` / `false`), or `default`.
-    pub fn bool(&mut self, key: &'static str, default: bool) -> Result<bool, WarmstartError> {
+    pub fn bool(&mut self, key: &'static str, default: bool) -> Result<bool, SpecError> {
         match self.string(key) {
             None => Ok(default),
             Some("true") => Ok(true),
@@ -163,7 +177,7 @@ impl<'a> Params<'a> {
     }
 
     /// An unsigned integer parameter, or `default`.
-    pub fn u64(&mut self, key: &'static str, default: u64) -> Result<u64, WarmstartError> {
+    pub fn u64(&mut self, key: &'static str, default: u64) -> Result<u64, SpecError> {
         match self.string(key) {
             None => Ok(default),
             Some(v) => v
@@ -173,13 +187,13 @@ impl<'a> Params<'a> {
     }
 
     /// Errors if a parameter was given that no accessor asked for.
-    pub fn finish(self) -> Result<(), WarmstartError> {
+    pub fn finish(self) -> Result<(), SpecError> {
         for k in self.spec.params.keys() {
             if !self.accepted.contains(&k.as_str()) {
                 let mut acc = self.accepted.clone();
                 acc.sort_unstable();
                 acc.dedup();
-                return Err(WarmstartError::UnknownParameter {
+                return Err(SpecError::UnknownParameter {
                     spec: self.spec.name.clone(),
                     param: k.clone(),
                     accepted: if acc.is_empty() {

@@ -1,8 +1,8 @@
-//! The crate's error type.
+//! Errors of specs and of the registry.
 
 /// Errors from parsing specs and building providers or solvers.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum WarmstartError {
+pub enum SpecError {
     /// The spec text is malformed.
     #[error("malformed spec `{spec}`: {reason}")]
     MalformedSpec {

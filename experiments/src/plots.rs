@@ -1,6 +1,6 @@
 //! Figures drawn with plotters, each written as PNG and SVG.
 //!
-//! Text uses DejaVu Sans, embedded in the binary (`cli/assets/`, Bitstream Vera license)
+//! Text uses DejaVu Sans, embedded in the binary (`experiments/assets/`, Bitstream Vera license)
 //! and registered with plotters' `ab_glyph` font loader, so no system font library is
 //! needed.
 
@@ -14,10 +14,10 @@ use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use plotters::style::{FontStyle, register_font};
 
-use crate::common::CliError;
-use crate::compare::write_atomic;
+use crate::ExperimentError;
+use crate::atomic::write_atomic;
 
-/// DejaVu Sans (see `cli/assets/DejaVuSans-LICENSE.txt`).
+/// DejaVu Sans (see `experiments/assets/DejaVuSans-LICENSE.txt`).
 static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
 
 /// Registers the embedded font as plotters' `sans-serif` family (once per process).
@@ -116,8 +116,8 @@ impl Figure {
     }
 }
 
-fn plot_err(path: &Path, e: impl std::fmt::Display) -> CliError {
-    CliError::Plot {
+fn plot_err(path: &Path, e: impl std::fmt::Display) -> ExperimentError {
+    ExperimentError::Plot {
         path: path.display().to_string(),
         reason: e.to_string(),
     }
@@ -126,7 +126,7 @@ fn plot_err(path: &Path, e: impl std::fmt::Display) -> CliError {
 /// Draws `figure` as `<dir>/<name>.png` and `<dir>/<name>.svg`. Each file is drawn to a
 /// temporary file in `dir` and renamed into place, so an interrupted run never leaves a
 /// half-written figure. Returns the two paths.
-pub fn draw(figure: &Figure, dir: &Path, name: &str) -> Result<Vec<PathBuf>, CliError> {
+pub fn draw(figure: &Figure, dir: &Path, name: &str) -> Result<Vec<PathBuf>, ExperimentError> {
     let png = dir.join(format!("{name}.png"));
     let svg = dir.join(format!("{name}.svg"));
     ensure_font().map_err(|e| plot_err(&png, e))?;
@@ -144,7 +144,7 @@ pub fn draw(figure: &Figure, dir: &Path, name: &str) -> Result<Vec<PathBuf>, Cli
     }
     std::fs::rename(&tmp_png, &png).map_err(|source| {
         let _ = std::fs::remove_file(&tmp_png);
-        CliError::Io {
+        ExperimentError::Io {
             path: png.display().to_string(),
             source,
         }

@@ -6,13 +6,13 @@ use deepcontact_core::math::rotate;
 use deepcontact_core::{BodyKind, World};
 use plotters::prelude::*;
 
-use crate::common::CliError;
+use crate::ExperimentError;
 
 /// Renders the bodies, walls and last step's contact normals of `world` to `path` (PNG,
 /// written to a temporary file and renamed). Dynamic bodies are blue outlines with a radius
 /// line showing their angle, static bodies black, contact normals short red segments.
-pub fn render_world(world: &World, path: &Path) -> Result<(), CliError> {
-    let plot_err = |e: &dyn std::fmt::Display| CliError::Plot {
+pub fn render_world(world: &World, path: &Path) -> Result<(), ExperimentError> {
+    let plot_err = |e: &dyn std::fmt::Display| ExperimentError::Plot {
         path: path.display().to_string(),
         reason: e.to_string(),
     };
@@ -93,7 +93,7 @@ pub fn render_world(world: &World, path: &Path) -> Result<(), CliError> {
         chart.draw_series(normals).map_err(|e| plot_err(&e))?;
         root.present().map_err(|e| plot_err(&e))?;
     }
-    std::fs::rename(&tmp, path).map_err(|e| CliError::Io {
+    std::fs::rename(&tmp, path).map_err(|e| ExperimentError::Io {
         path: path.display().to_string(),
         source: e,
     })?;

@@ -1,0 +1,281 @@
+//! The comparison's files: CSV tables (the `csv` crate over serde rows), Markdown, JSON and
+//! figures, each written atomically.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+
+use super::{Curve, Results, Summary, curves, figures, summarize};
+use crate::atomic::write_atomic;
+use crate::{ExperimentError, plots};
+
+/// Column names of `steps.csv`.
+pub const STEPS_COLUMNS: &str = "solver,warm_start,seed,step,contacts,islands,iterations,iterations_sum,capped_islands,\
+residual_inf,natural_residual,mse_normal,mse_tangent,fallbacks,warm_start_ms,solve_ms,step_ms";
+/// Column names of `curves.csv`.
+pub const CURVES_COLUMNS: &str =
+    "solver,warm_start,iteration,median_residual_inf,iterators_left,steps";
+/// Column names of `summary.csv`.
+pub const SUMMARY_COLUMNS: &str = "solver,warm_start,seeds,steps,contact_steps,mean_iterations,median_iterations,\
+max_iterations,capped_steps,mean_contacts,warm_start_ms,solve_ms,step_ms,mse_normal,mse_tangent,\
+natural_residual_mean,natural_residual_max,fallbacks,speedup_vs_none,speedup_vs_builtin";
+
+/// `x` rounded to `digits` decimals (times in the tables carry no more precision than that).
+fn round(x: f64, digits: i32) -> f64 {
+    let k = 10f64.powi(digits);
+    (x * k).round() / k
+}
+
+fn opt(v: Option<f64>, digits: usize) -> String {
+    v.map_or_else(String::new, |x| format!("{x:.digits$}"))
+}
+
+/// Serialises `rows` as CSV with a header line.
+fn to_csv<T: Serialize>(rows: impl IntoIterator<Item = T>) -> Result<Vec<u8>, ExperimentError> {
+    let mut w = csv::Writer::from_writer(Vec::new());
+    for row in rows {
+        w.serialize(row)
+            .map_err(|e| ExperimentError::Invalid(format!("csv: {e}")))?;
+    }
+    w.into_inner()
+        .map_err(|e| ExperimentError::Invalid(format!("csv: {e}")))
+}
+
+#[derive(Serialize)]
+struct StepRow<'a> {
+    solver: &'a str,
+    warm_start: &'a str,
+    seed: u64,
+    step: u64,
+    contacts: usize,
+    islands: usize,
+    iterations: u32,
+    iterations_sum: u64,
+    capped_islands: usize,
+    residual_inf: f64,
+    natural_residual: f64,
+    mse_normal: f64,
+    mse_tangent: f64,
+    fallbacks: usize,
+    warm_start_ms: f64,
+    solve_ms: f64,
+    step_ms: f64,
+}
+
+/// `steps.csv`: one row per solver, warm start, seed and step (columns [`STEPS_COLUMNS`]).
+pub fn steps_csv(results: &Results) -> Result<Vec<u8>, ExperimentError> {
+    to_csv(results.runs.iter().flat_map(|run| {
+        run.steps.iter().map(move |r| StepRow {
+            solver: &results.solvers[run.solver],
+            warm_start: &results.warm_starts[run.warm_start],
+            seed: run.seed,
+            step: r.step,
+            contacts: r.contacts,
+            islands: r.islands,
+            iterations: r.iterations,
+            iterations_sum: r.iterations_sum,
+            capped_islands: r.capped_islands,
+            residual_inf: r.final_residual,
+            natural_residual: r.natural_residual,
+            mse_normal: r.mse_normal,
+            mse_tangent: r.mse_tangent,
+            fallbacks: r.fallbacks,
+            warm_start_ms: round(1e3 * r.warm_start_seconds, 4),
+            solve_ms: round(1e3 * r.solve_seconds, 4),
+            step_ms: round(1e3 * r.step_seconds, 4),
+        })
+    }))
+}
+
+#[derive(Serialize)]
+struct CurveRow<'a> {
+    solver: &'a str,
+    warm_start: &'a str,
+    iteration: usize,
+    median_residual_inf: f64,
+    iterators_left: usize,
+    steps: usize,
+}
+
+/// `curves.csv`: per solver, warm start and iteration (1-based), the median ∞-norm residual
+/// and the steps still iterating (columns [`CURVES_COLUMNS`]).
+pub fn curves_csv(curves: &[Curve]) -> Result<Vec<u8>, ExperimentError> {
+    to_csv(curves.iter().flat_map(|c| {
+        c.median_residual
+            .iter()
+            .zip(&c.iterators_left)
+            .enumerate()
+            .map(move |(i, (&r, &left))| CurveRow {
+                solver: &c.solver,
+                warm_start: &c.warm_start,
+                iteration: i + 1,
+                median_residual_inf: r,
+                iterators_left: left,
+                steps: c.steps,
+            })
+    }))
+}
+
+/// `summary.csv`: one row per solver and warm start (columns [`SUMMARY_COLUMNS`]; an empty
+/// speedup where the reference provider was not run).
+pub fn summary_csv(rows: &[Summary]) -> Result<Vec<u8>, ExperimentError> {
+    to_csv(rows)
+}
+
+/// `summary.md`: the summary as a Markdown table with a few lines on how it was measured.
+pub fn summary_md(results: &Results, rows: &[Summary]) -> String {
+    let c = &results.config;
+    let several = results.solvers.len() > 1;
+    let mut s = String::new();
+    let _ = writeln!(s, "# Warm-start comparison\n");
+    let seeds = match (c.seeds.first(), c.seeds.last()) {
+        (Some(a), Some(b)) if c.seeds.len() > 1 => format!("{} seeds ({a} to {b})", c.seeds.len()),
+        (Some(a), _) => format!("seed {a}"),
+        _ => String::new(),
+    };
+    let _ = writeln!(
+        s,
+        "Pile of {} circles, {seeds}, {} steps each; velocity iterations capped at {}, tolerance {:e} ({:?} norm); \
+         {} threads, {:.1} s wall time.\n",
+        c.bodies,
+        c.steps,
+        c.world.solver.max_iterations,
+        c.world.solver.tolerance,
+        c.world.solver.norm,
+        results.threads,
+        results.wall_seconds,
+    );
+    let head = [
+        "warm_start",
+        "mean_iterations",
+        "median_iterations",
+        "capped_steps",
+        "mean_contacts",
+        "warm_start_ms",
+        "solve_ms",
+        "step_ms",
+        "mse_normal",
+        "mse_tangent",
+        "natural_residual_mean",
+        "natural_residual_max",
+        "fallbacks",
+        "speedup_vs_none",
+        "speedup_vs_builtin",
+    ];
+    let _ = writeln!(
+        s,
+        "| {}{} |",
+        if several { "solver | " } else { "" },
+        head.join(" | ")
+    );
+    let _ = writeln!(
+        s,
+        "|{}{}|",
+        if several { "---|" } else { "" },
+        ["---:"; 15].join("|").replacen("---:", "---", 1)
+    );
+    for r in rows {
+        let solver = if several {
+            format!("{} | ", r.solver)
+        } else {
+            String::new()
+        };
+        let _ = writeln!(
+            s,
+            "| {solver}{} | {:.1} | {:.0} | {} | {:.1} | {:.3} | {:.3} | {:.3} | {:.3e} | {:.3e} | {:.2e} | {:.2e} | {} | {} | {} |",
+            r.warm_start,
+            r.mean_iterations,
+            r.median_iterations,
+            r.capped_steps,
+            r.mean_contacts,
+            r.warm_start_ms,
+            r.solve_ms,
+            r.step_ms,
+            r.mse_normal,
+            r.mse_tangent,
+            r.natural_residual_mean,
+            r.natural_residual_max,
+            r.fallbacks,
+            opt(r.speedup_vs_none, 2),
+            opt(r.speedup_vs_builtin, 2),
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\nIterations are those of a step's slowest island. Steps without contacts ({} of {} per warm start here) \
+         are left out of the iteration and MSE columns and counted in mean_contacts and the times. Times are means \
+         per step, measured while the worlds ran in parallel; speedups are ratios of total step time against the \
+         same solver's `none` / `builtin`. The `copy` providers' warm-start time includes the oracle's own solve. \
+         natural_residual_mean / _max: the natural-map residual of the final impulses (N·s, largest over a step's \
+         islands), mean and maximum over contact steps: where the solver stopped, beside how long it took.",
+        rows.first().map_or(0, |r| r.steps - r.contact_steps),
+        rows.first().map_or(0, |r| r.steps),
+    );
+    s
+}
+
+/// What [`write_outputs`] wrote.
+#[derive(Debug, Clone, Default)]
+pub struct Outputs {
+    /// Every file written.
+    pub files: Vec<PathBuf>,
+    /// The text of `summary.md`.
+    pub summary_md: String,
+}
+
+/// Writes the tables (and, with `plots`, the figures) of `results` into `dir`.
+pub fn write_outputs(
+    results: &Results,
+    dir: &Path,
+    plots: bool,
+) -> Result<Outputs, ExperimentError> {
+    std::fs::create_dir_all(dir).map_err(|e| ExperimentError::io(dir, e))?;
+    let rows = summarize(results);
+    let curves = curves(results);
+    let summary_md = summary_md(results, &rows);
+    let json = serde_json::json!({ "config": &results.config, "threads": results.threads,
+        "wall_seconds": results.wall_seconds, "summary": &rows });
+    let json = serde_json::to_string_pretty(&json)
+        .map_err(|e| ExperimentError::Invalid(format!("summary.json: {e}")))?;
+    let mut files = Vec::new();
+    for (name, text) in [
+        ("steps.csv", steps_csv(results)?),
+        ("curves.csv", curves_csv(&curves)?),
+        ("summary.csv", summary_csv(&rows)?),
+        ("summary.md", summary_md.clone().into_bytes()),
+        ("summary.json", (json + "\n").into_bytes()),
+    ] {
+        let path = dir.join(name);
+        write_atomic(&path, &text)?;
+        files.push(path);
+    }
+    if plots {
+        let fig_dir = dir.join("figures");
+        std::fs::create_dir_all(&fig_dir).map_err(|e| ExperimentError::io(&fig_dir, e))?;
+        for s in 0..results.solvers.len() {
+            let suffix = if results.solvers.len() > 1 {
+                format!("_{}", file_safe(&results.solvers[s]))
+            } else {
+                String::new()
+            };
+            for (name, figure) in figures(results, &curves, s) {
+                files.extend(plots::draw(&figure, &fig_dir, &format!("{name}{suffix}"))?);
+            }
+        }
+    }
+    Ok(Outputs { files, summary_md })
+}
+
+fn file_safe(label: &str) -> String {
+    label
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}

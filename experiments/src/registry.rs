@@ -1,0 +1,24 @@
+//! The full registry: every provider and solver of this build.
+
+use deepcontact_core::Registry;
+
+/// Every provider and solver this build knows: `pgs` (deepcontact-pgs), `psor` and `newton`
+/// (deepcontact-lcp), the baselines (deepcontact-warmstart), `grid` (deepcontact-grid) and,
+/// with the `onnx` feature, the CNNs `pressure`, `peak` and `onnx:` (deepcontact-onnx).
+/// The CLI, benches, fuzz targets and tests all use this one; add your own entries to it.
+///
+/// ```
+/// let registry = deepcontact_experiments::full_registry();
+/// assert!(registry.build_solver("psor:omega=1.2").is_ok());
+/// assert!(registry.provider_info("copy").unwrap().oracle);
+/// ```
+pub fn full_registry() -> Registry {
+    let mut registry = Registry::empty();
+    deepcontact_pgs::register(&mut registry);
+    deepcontact_lcp::register(&mut registry);
+    deepcontact_warmstart::register(&mut registry);
+    deepcontact_grid::register(&mut registry);
+    #[cfg(feature = "onnx")]
+    deepcontact_onnx::register(&mut registry);
+    registry
+}

@@ -1,0 +1,232 @@
+//! The thesis's Table 1 (section 5.5; what `deepcontact grid-roundtrip` runs).
+//!
+//! For every grid spacing `res` and support radius `h` in {0.125, 0.25, 0.5}: the mean
+//! absolute difference, after particles → grid → particles (SPH both ways, poly6), of
+//! the body masses and of the contact normal impulses, over piles of seeds
+//! `first_seed..first_seed + worlds` settled for `steps` steps with the builtin warm start.
+//! Means are pooled over all bodies (contacts) of all worlds. Worlds run in parallel
+//! (rayon), but each world's sums are kept apart and added in seed order, so the result
+//! does not depend on the number of threads.
+//!
+//! Outputs ([`write_roundtrip`], each written to a temporary file and renamed into place):
+//! `grid_roundtrip.csv` and `grid_roundtrip.md`.
+
+use std::path::{Path, PathBuf};
+
+use deepcontact_core::{CarriedWarmStart, WorldSettings, scene};
+use deepcontact_grid::{Kernel, RoundTrip, RoundTripSums, TABLE1_VALUES, THESIS_TABLE1};
+use deepcontact_pgs::{PgsPositionSolver, PgsSolver};
+use rayon::prelude::*;
+
+use crate::ExperimentError;
+use crate::atomic::write_atomic;
+
+/// What to measure. [`RoundtripConfig::default`] is the table of `docs/`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RoundtripConfig {
+    /// Number of piles, seeds `first_seed..first_seed + worlds` (default 25).
+    pub worlds: u64,
+    /// Steps each pile is simulated before the round trip (default 200).
+    pub steps: u64,
+    /// First seed (default 0).
+    pub first_seed: u64,
+    /// Circles per pile, the box scaled to keep the density (default 100).
+    pub bodies: usize,
+}
+
+impl Default for RoundtripConfig {
+    fn default() -> Self {
+        Self {
+            worlds: 25,
+            steps: 200,
+            first_seed: 0,
+            bodies: 100,
+        }
+    }
+}
+
+/// One row of the table.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Row {
+    /// Grid spacing (m).
+    pub res: f64,
+    /// Kernel support radius (m).
+    pub h: f64,
+    /// Sums over all worlds.
+    pub sums: RoundTripSums,
+    /// The thesis's (body, contact) means for this pair, if it has one.
+    pub thesis: Option<(f64, f64)>,
+}
+
+/// The `(res, h)` pairs of Table 1, in the thesis's order.
+pub fn pairs() -> Vec<(f64, f64)> {
+    TABLE1_VALUES
+        .iter()
+        .flat_map(|&res| TABLE1_VALUES.iter().map(move |&h| (res, h)))
+        .collect()
+}
+
+fn grid_err(seed: u64, e: deepcontact_grid::GridError) -> ExperimentError {
+    ExperimentError::Grid {
+        seed,
+        reason: e.to_string(),
+    }
+}
+
+/// Settles one pile and measures every pair on it.
+pub fn world_sums(
+    seed: u64,
+    config: &RoundtripConfig,
+) -> Result<Vec<RoundTripSums>, ExperimentError> {
+    let scene = scene::pile(seed, config.bodies)?;
+    let mut world = scene.build(WorldSettings::default())?;
+    let (mut solver, mut position) = (PgsSolver::new(), PgsPositionSolver::new());
+    for _ in 0..config.steps {
+        world.step(&mut CarriedWarmStart, &mut solver, &mut position)?;
+    }
+    pairs()
+        .into_iter()
+        .map(|(res, h)| {
+            let mut rt = RoundTrip::new(scene.min, scene.max, res, h, Kernel::Poly6)
+                .map_err(|e| grid_err(seed, e))?;
+            rt.world(&world).map_err(|e| grid_err(seed, e))
+        })
+        .collect()
+}
+
+/// Runs every world (in parallel) and adds their sums in seed order.
+pub fn table(config: &RoundtripConfig) -> Result<Vec<Row>, ExperimentError> {
+    if config.worlds == 0 {
+        return Err(ExperimentError::Invalid("worlds must be at least 1".into()));
+    }
+    let seeds: Vec<u64> = (0..config.worlds)
+        .map(|i| config.first_seed.wrapping_add(i))
+        .collect();
+    let per_world: Vec<Result<Vec<RoundTripSums>, ExperimentError>> = seeds
+        .par_iter()
+        .map(|&seed| world_sums(seed, config))
+        .collect();
+    let mut rows: Vec<Row> = pairs()
+        .into_iter()
+        .map(|(res, h)| Row {
+            res,
+            h,
+            sums: RoundTripSums::default(),
+            thesis: THESIS_TABLE1
+                .iter()
+                .find(|t| t.0 == res && t.1 == h)
+                .map(|t| (t.2, t.3)),
+        })
+        .collect();
+    for world in per_world {
+        for (row, sums) in rows.iter_mut().zip(world?) {
+            row.sums.add(&sums);
+        }
+    }
+    Ok(rows)
+}
+
+/// The table as CSV (one row per pair, thesis values alongside).
+pub fn csv(rows: &[Row]) -> String {
+    let mut s = String::from(
+        "res,h,body_mean_abs_diff,contact_mean_abs_diff,bodies,contacts,lost_bodies,lost_contacts,thesis_body,thesis_contact\n",
+    );
+    for r in rows {
+        let (tb, tc) = r.thesis.map_or((String::new(), String::new()), |(b, c)| {
+            (b.to_string(), c.to_string())
+        });
+        s.push_str(&format!(
+            "{},{},{:.6e},{:.6e},{},{},{},{},{tb},{tc}\n",
+            r.res,
+            r.h,
+            r.sums.body_mean(),
+            r.sums.contact_mean(),
+            r.sums.bodies,
+            r.sums.contacts,
+            r.sums.lost_bodies,
+            r.sums.lost_contacts
+        ));
+    }
+    s
+}
+
+/// The table as markdown, with the setup.
+pub fn markdown(rows: &[Row], config: &RoundtripConfig) -> String {
+    let (bodies, contacts) = rows
+        .first()
+        .map_or((0, 0), |r| (r.sums.bodies, r.sums.contacts));
+    let mut s = format!(
+        "# Grid round trip (thesis Table 1)\n\n\
+         Mean absolute difference after particles → grid → particles (SPH both ways, poly6 kernel, \
+         weights normalised per particle and per node), pooled over {} piles (seeds {}..{}) of {} circles \
+         settled for {} steps with the builtin warm start: {bodies} bodies and {contacts} contact points \
+         in all. A body's mass is π/4 ≈ 0.7854.\n\n\
+         | res | h | body mass diff | thesis | contact normal impulse diff | thesis | lost bodies | lost contacts |\n\
+         |---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        config.worlds,
+        config.first_seed,
+        config.first_seed.wrapping_add(config.worlds),
+        config.bodies,
+        config.steps
+    );
+    for r in rows {
+        let (tb, tc) = r.thesis.map_or(("–".into(), "–".into()), |(b, c)| {
+            (format!("{b:.4}"), format!("{c:.4}"))
+        });
+        s.push_str(&format!(
+            "| {} | {} | {:.4} | {tb} | {:.4} | {tc} | {} | {} |\n",
+            r.res,
+            r.h,
+            r.sums.body_mean(),
+            r.sums.contact_mean(),
+            r.sums.lost_bodies,
+            r.sums.lost_contacts
+        ));
+    }
+    s
+}
+
+/// Writes `grid_roundtrip.csv` and `grid_roundtrip.md` into `dir` (created if missing);
+/// returns their paths.
+pub fn write_roundtrip(
+    rows: &[Row],
+    config: &RoundtripConfig,
+    dir: &Path,
+) -> Result<[PathBuf; 2], ExperimentError> {
+    std::fs::create_dir_all(dir).map_err(|e| ExperimentError::io(dir, e))?;
+    let csv_path = dir.join("grid_roundtrip.csv");
+    let md_path = dir.join("grid_roundtrip.md");
+    write_atomic(&csv_path, csv(rows).as_bytes())?;
+    write_atomic(&md_path, markdown(rows, config).as_bytes())?;
+    Ok([csv_path, md_path])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_small_table_has_the_thesis_pattern() {
+        let config = RoundtripConfig {
+            worlds: 2,
+            steps: 30,
+            first_seed: 0,
+            bodies: 100,
+        };
+        let rows = table(&config).unwrap();
+        assert_eq!(rows.len(), 9);
+        let get = |res: f64, h: f64| rows.iter().find(|r| r.res == res && r.h == h).unwrap();
+        assert_eq!(get(0.25, 0.25).sums.bodies, 200);
+        assert!(get(0.25, 0.25).sums.body_mean() < 1e-4);
+        assert!(get(0.5, 0.125).sums.body_mean() > get(0.25, 0.125).sums.body_mean());
+        assert!(rows.iter().all(|r| r.thesis.is_some()));
+        let csv = csv(&rows);
+        assert_eq!(csv.lines().count(), 10);
+        assert!(markdown(&rows, &config).contains("| 0.25 | 0.5 |"));
+        let bad = RoundtripConfig {
+            worlds: 0,
+            ..config
+        };
+        assert!(table(&bad).is_err());
+    }
+}

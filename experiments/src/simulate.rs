@@ -1,0 +1,121 @@
+//! One scene with one warm start, a report per step (what `deepcontact simulate` runs).
+
+use std::time::Instant;
+
+use deepcontact_core::{Registry, StepReport, World, WorldSettings, scene};
+use deepcontact_pgs::PgsPositionSolver;
+
+use crate::ExperimentError;
+
+/// What to simulate. [`SimulateConfig::default`] is the thesis pile, seed 12345, builtin.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimulateConfig {
+    /// Scene name, see [`deepcontact_core::scene::by_name`] (default `pile`).
+    pub scene: String,
+    /// Number of bodies (pile: circles, in a box scaled to keep the density; default 100).
+    pub bodies: usize,
+    /// Seed of the scene (default 12345).
+    pub seed: u64,
+    /// Steps to run (default 250).
+    pub steps: u64,
+    /// Warm-start provider spec (default `builtin`).
+    pub warm_start: String,
+    /// Velocity solver spec (default `pgs`).
+    pub solver: String,
+    /// World settings (default: the thesis's).
+    pub world: WorldSettings,
+}
+
+impl Default for SimulateConfig {
+    fn default() -> Self {
+        Self {
+            scene: "pile".into(),
+            bodies: 100,
+            seed: 12345,
+            steps: 250,
+            warm_start: "builtin".into(),
+            solver: "pgs".into(),
+            world: WorldSettings::default(),
+        }
+    }
+}
+
+impl SimulateConfig {
+    /// The first step counted as "late": 150 for runs of 250 steps or more (the thesis's
+    /// window), else the last 40 % of the run.
+    pub fn late_from(&self) -> u64 {
+        if self.steps >= 250 {
+            150
+        } else {
+            self.steps * 6 / 10
+        }
+    }
+}
+
+/// Totals over a run.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Totals {
+    /// Steps run.
+    pub steps: u64,
+    /// Mean velocity iterations per step.
+    pub mean_iterations: f64,
+    /// Mean velocity iterations from [`SimulateConfig::late_from`] on.
+    pub mean_iterations_late: f64,
+    /// Mean contact points per step.
+    pub mean_contacts: f64,
+    /// Mean ms per step.
+    pub ms_per_step: f64,
+    /// Nanoseconds of velocity solve per contact point per iteration.
+    pub ns_per_point_iteration: f64,
+    /// Warm-start fallbacks.
+    pub fallbacks: usize,
+    /// Steps that hit the iteration cap.
+    pub capped_steps: u64,
+}
+
+/// Runs a scene, calling `each` for every step report; returns the world and the totals.
+pub fn run_scene(
+    config: &SimulateConfig,
+    registry: &Registry,
+    mut each: impl FnMut(&StepReport),
+) -> Result<(World, Totals), ExperimentError> {
+    let mut warm = registry.build_provider(&config.warm_start)?;
+    let mut solver = registry.build_solver(&config.solver)?;
+    let mut position = PgsPositionSolver::new();
+    let scene = scene::by_name(&config.scene, config.seed, config.bodies)?;
+    let mut world = scene.build(config.world)?;
+    let late_from = config.late_from();
+    let mut t = Totals {
+        steps: config.steps,
+        ..Totals::default()
+    };
+    let (mut iters, mut late, mut late_n, mut contacts, mut point_iters, mut solve_s) =
+        (0u64, 0u64, 0u64, 0u64, 0.0, 0.0);
+    let t0 = Instant::now();
+    for s in 0..config.steps {
+        let r = world.step(&mut warm, &mut solver, &mut position)?;
+        iters += u64::from(r.velocity_iterations);
+        if s >= late_from {
+            late += u64::from(r.velocity_iterations);
+            late_n += 1;
+        }
+        contacts += r.contacts as u64;
+        point_iters += r.contacts as f64 * f64::from(r.velocity_iterations);
+        solve_s += r.solve_seconds;
+        t.fallbacks += r.fallbacks;
+        t.capped_steps += u64::from(r.capped_islands > 0);
+        each(&r);
+    }
+    let elapsed = t0.elapsed().as_secs_f64();
+    let n = config.steps.max(1) as f64;
+    t.mean_iterations = iters as f64 / n;
+    t.mean_iterations_late = late as f64 / late_n.max(1) as f64;
+    t.mean_contacts = contacts as f64 / n;
+    t.ms_per_step = elapsed * 1e3 / n;
+    t.ns_per_point_iteration = if point_iters > 0.0 {
+        solve_s * 1e9 / point_iters
+    } else {
+        0.0
+    };
+    Ok((world, t))
+}
