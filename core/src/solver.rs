@@ -105,6 +105,25 @@ pub fn check_solve_buffers(
     Ok(())
 }
 
+/// The prologue every [`VelocitySolver::solve`] shares: clears `report`, validates the stop
+/// rule, the problem (when `validate_problem`; it costs one pass over the data) and the
+/// buffers' lengths.
+pub fn begin_solve(
+    problem: &ContactProblem,
+    settings: &SolverSettings,
+    validate_problem: bool,
+    impulses: &[Impulse],
+    velocities: &[(Vector, Real)],
+    report: &mut SolveReport,
+) -> Result<(), CoreError> {
+    report.clear();
+    settings.validate()?;
+    if validate_problem {
+        problem.validate()?;
+    }
+    check_solve_buffers(problem, impulses, velocities)
+}
+
 /// Solves the velocity-level contact problem of one island.
 ///
 /// The solver starts from `impulses` (the warm start, one per point), applies them to the

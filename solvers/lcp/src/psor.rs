@@ -12,7 +12,7 @@ use crate::assembly::{
     AssemblyMode, DEFAULT_DENSE_THRESHOLD, Delassus, impulses_to_rows, rows_to_impulses, sor_sweep,
     sweep_order,
 };
-use deepcontact_core::solver::check_solve_buffers;
+use deepcontact_core::solver::begin_solve;
 
 /// Options of [`PsorSolver`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -102,13 +102,15 @@ impl PsorSolver {
         report: &mut SolveReport,
     ) -> Result<(), LcpError> {
         let t0 = Instant::now();
-        report.clear();
-        settings.validate()?;
         self.settings.validate()?;
-        if self.settings.validate {
-            problem.validate()?;
-        }
-        check_solve_buffers(problem, impulses, velocities)?;
+        begin_solve(
+            problem,
+            settings,
+            self.settings.validate,
+            impulses,
+            velocities,
+            report,
+        )?;
         self.delassus.assemble(
             problem,
             self.settings.assembly,

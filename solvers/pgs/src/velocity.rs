@@ -739,12 +739,14 @@ impl VelocitySolver for PgsSolver {
         report: &mut SolveReport,
     ) -> Result<(), CoreError> {
         let t0 = Instant::now();
-        report.clear();
-        settings.validate()?;
-        if self.settings.validate {
-            problem.validate()?;
-        }
-        deepcontact_core::solver::check_solve_buffers(problem, impulses, velocities)?;
+        deepcontact_core::solver::begin_solve(
+            problem,
+            settings,
+            self.settings.validate,
+            impulses,
+            velocities,
+            report,
+        )?;
         self.prepare(problem, impulses);
         self.warm_start();
         report
