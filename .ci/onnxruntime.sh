@@ -21,4 +21,4 @@ echo "ONNX Runtime library: $lib"
 
 # ort's alternative-backend API (the default `tract` feature) replaces its dynamic loader,
 # so the ONNX Runtime build is the crate without default features.
-ORT_DYLIB_PATH="$(realpath "$lib")" cargo test -p deepcontact-onnx --no-default-features --features load-dynamic
+ORT_DYLIB_PATH="$(realpath "$lib")" cargo test --release -p deepcontact-onnx --no-default-features --features load-dynamic
