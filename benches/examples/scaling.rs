@@ -22,12 +22,14 @@
 use std::time::Instant;
 
 use deepcontact_benches::{SEED, fixed_iterations, fixed_world, settle_world};
+use deepcontact_core::Pose;
+use deepcontact_core::Velocity;
 use deepcontact_core::broad_phase::BroadPhase;
 use deepcontact_core::island::Islands;
 use deepcontact_core::narrow_phase::NarrowPhase;
 use deepcontact_core::{
-    CarriedWarmStart, Impulse, PositionSolver, Real, SolveReport, StepReport, Vector,
-    VelocitySolver, World, WorldSettings, scene,
+    CarriedWarmStart, Impulse, PositionSolver, SolveReport, StepReport, VelocitySolver, World,
+    WorldSettings, scene,
 };
 use deepcontact_pgs::{PgsPositionSolver, PgsSolver};
 
@@ -209,8 +211,8 @@ fn phases(world: &World, iterations: u32, reps: u32) -> Result<Phases, String> {
     let settings = fixed_world(iterations);
     let (mut vs, mut ps) = (PgsSolver::default(), PgsPositionSolver::default());
     let mut impulses: Vec<Impulse> = Vec::new();
-    let mut velocities: Vec<(Vector, Real)> = Vec::new();
-    let mut poses: Vec<(Vector, Real)> = Vec::new();
+    let mut velocities: Vec<Velocity> = Vec::new();
+    let mut poses: Vec<Pose> = Vec::new();
     let mut report = SolveReport::default();
     // Each phase's minimum over the repetitions: robust to other processes on the machine.
     let inf = f64::INFINITY;
@@ -255,7 +257,7 @@ fn phases(world: &World, iterations: u32, reps: u32) -> Result<Phases, String> {
                     .unwrap_or(Impulse::ZERO)
             }));
             velocities.clear();
-            velocities.resize(problem.bodies.len(), (Vector::zeros(), 0.0));
+            velocities.resize(problem.bodies.len(), Velocity::default());
             let t = Instant::now();
             vs.solve(
                 problem,
@@ -273,12 +275,12 @@ fn phases(world: &World, iterations: u32, reps: u32) -> Result<Phases, String> {
             poses.extend(problem.bodies.iter().map(|b| {
                 let body = &bodies[b.world_index as usize];
                 if body.is_dynamic() {
-                    (
+                    Pose::new(
                         b.position + dt * body.linear_velocity,
                         b.angle + dt * body.angular_velocity,
                     )
                 } else {
-                    (b.position, b.angle)
+                    Pose::new(b.position, b.angle)
                 }
             }));
             let t = Instant::now();

@@ -19,11 +19,13 @@
 
 use std::path::PathBuf;
 
+use deepcontact_core::Velocity;
+
 use deepcontact_core::Registry;
 use deepcontact_core::scene;
 use deepcontact_core::{
-    CarriedWarmStart, ContactProblem, CoreError, Impulse, Observation, PositionSettings, Real,
-    ResidualNorm, SolveReport, SolverSettings, StepReport, Vector, VelocitySolver, WarmStart,
+    CarriedWarmStart, ContactProblem, CoreError, Impulse, Observation, PositionSettings,
+    ResidualNorm, SolveReport, SolverSettings, StepReport, VelocitySolver, WarmStart,
     WarmStartContext, WarmStartError, World, WorldSettings,
 };
 use deepcontact_pgs::{PgsPositionSolver, PgsSolver};
@@ -126,16 +128,14 @@ pub fn settle_world(cap: u32) -> WorldSettings {
     }
 }
 
-/// What a warm start saw for one island: the problem, the carried impulses and which points
-/// persisted from the previous step.
+/// What a warm start saw for one island: the problem and the impulses carried from the
+/// previous step.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct IslandRecord {
     /// The island's contact problem.
     pub problem: ContactProblem,
-    /// Impulses carried from the previous step, one per point.
-    pub carried: Vec<Impulse>,
-    /// Whether each point matched a point of the previous step.
-    pub persisted: Vec<bool>,
+    /// Per point, the impulse carried from the previous step (`None` for a new point).
+    pub carried: Vec<Option<Impulse>>,
 }
 
 /// A [`WarmStart`] wrapper that records every island's [`IslandRecord`] at chosen steps and
@@ -179,7 +179,6 @@ impl<W: WarmStart> WarmStart for Recorder<W> {
                 islands.push(IslandRecord {
                     problem: ctx.problem.clone(),
                     carried: ctx.carried.to_vec(),
-                    persisted: ctx.persisted.to_vec(),
                 });
             }
         }
@@ -226,7 +225,6 @@ impl Snapshot {
         WarmStartContext::new(
             &island.problem,
             &island.carried,
-            &island.persisted,
             self.step,
             self.world.settings().dt,
         )
@@ -288,7 +286,7 @@ pub struct SolveCounts {
 #[derive(Debug, Default)]
 pub struct SolveScratch {
     impulses: Vec<Impulse>,
-    velocities: Vec<(Vector, Real)>,
+    velocities: Vec<Velocity>,
     /// Report of the last island solved.
     pub report: SolveReport,
 }
@@ -305,10 +303,11 @@ impl SolveScratch {
         let mut counts = SolveCounts::default();
         for island in islands {
             self.impulses.clear();
-            self.impulses.extend_from_slice(&island.carried);
+            self.impulses
+                .extend(island.carried.iter().map(|c| c.unwrap_or(Impulse::ZERO)));
             self.velocities.clear();
             self.velocities
-                .resize(island.problem.bodies.len(), (Vector::zeros(), 0.0));
+                .resize(island.problem.bodies.len(), Velocity::default());
             solver.solve(
                 &island.problem,
                 settings,

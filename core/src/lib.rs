@@ -34,7 +34,7 @@ pub mod world;
 pub use body::{Body, BodyDesc, BodyHandle, BodyKind, Material};
 pub use contact::{ContactId, Impulse};
 pub use error::CoreError;
-pub use math::{Real, Vector};
+pub use math::{Pose, Real, Vector, Velocity};
 pub use problem::{ContactPoint, ContactProblem, PointDesc, ProblemBody};
 pub use registry::{ProviderInfo, Registry, Spec, SpecError};
 pub use report::{SolveReport, StepReport};

@@ -5,6 +5,38 @@ pub type Real = f64;
 /// A 2D vector (positions, velocities, normals, anchors).
 pub type Vector = nalgebra::Vector2<Real>;
 
+/// A body's velocity: linear (m/s) and angular (rad/s, counter-clockwise positive).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Velocity {
+    /// Velocity of the centre of mass (m/s).
+    pub linear: Vector,
+    /// Angular velocity (rad/s).
+    pub angular: Real,
+}
+
+impl Velocity {
+    /// A velocity from its parts.
+    pub fn new(linear: Vector, angular: Real) -> Self {
+        Self { linear, angular }
+    }
+}
+
+/// A body's pose: centre of mass (m) and orientation (rad, counter-clockwise positive).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Pose {
+    /// Centre of mass (m).
+    pub position: Vector,
+    /// Orientation (rad).
+    pub angle: Real,
+}
+
+impl Pose {
+    /// A pose from its parts.
+    pub fn new(position: Vector, angle: Real) -> Self {
+        Self { position, angle }
+    }
+}
+
 /// 2D cross product of two vectors: `a.x * b.y - a.y * b.x`.
 #[inline(always)]
 pub fn cross(a: &Vector, b: &Vector) -> Real {

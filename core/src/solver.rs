@@ -2,7 +2,7 @@
 
 use crate::contact::Impulse;
 use crate::error::CoreError;
-use crate::math::{Real, Vector};
+use crate::math::{Pose, Real, Velocity};
 use crate::problem::ContactProblem;
 use crate::report::SolveReport;
 
@@ -86,7 +86,7 @@ impl SolverSettings {
 pub fn check_solve_buffers(
     problem: &ContactProblem,
     impulses: &[Impulse],
-    velocities: &[(Vector, Real)],
+    velocities: &[Velocity],
 ) -> Result<(), CoreError> {
     if impulses.len() != problem.points.len() {
         return Err(CoreError::LengthMismatch {
@@ -113,7 +113,7 @@ pub fn begin_solve(
     settings: &SolverSettings,
     validate_problem: bool,
     impulses: &[Impulse],
-    velocities: &[(Vector, Real)],
+    velocities: &[Velocity],
     report: &mut SolveReport,
 ) -> Result<(), CoreError> {
     report.clear();
@@ -141,7 +141,7 @@ pub trait VelocitySolver: Send {
         problem: &ContactProblem,
         settings: &SolverSettings,
         impulses: &mut [Impulse],
-        velocities: &mut [(Vector, Real)],
+        velocities: &mut [Velocity],
         report: &mut SolveReport,
     ) -> Result<(), CoreError>;
 }
@@ -155,7 +155,7 @@ impl<S: VelocitySolver + ?Sized> VelocitySolver for Box<S> {
         problem: &ContactProblem,
         settings: &SolverSettings,
         impulses: &mut [Impulse],
-        velocities: &mut [(Vector, Real)],
+        velocities: &mut [Velocity],
         report: &mut SolveReport,
     ) -> Result<(), CoreError> {
         (**self).solve(problem, settings, impulses, velocities, report)
@@ -265,7 +265,7 @@ pub trait PositionSolver: Send {
         &mut self,
         problem: &ContactProblem,
         settings: &PositionSettings,
-        poses: &mut [(Vector, Real)],
+        poses: &mut [Pose],
     ) -> Result<PositionReport, CoreError>;
 }
 
@@ -277,7 +277,7 @@ impl<S: PositionSolver + ?Sized> PositionSolver for Box<S> {
         &mut self,
         problem: &ContactProblem,
         settings: &PositionSettings,
-        poses: &mut [(Vector, Real)],
+        poses: &mut [Pose],
     ) -> Result<PositionReport, CoreError> {
         (**self).solve_positions(problem, settings, poses)
     }

@@ -43,11 +43,9 @@ impl<'a> Observation<'a> {
 pub struct WarmStartContext<'a> {
     /// The island's contact problem (bodies, points, manifolds).
     pub problem: &'a ContactProblem,
-    /// Impulses carried over from the previous step by [`ContactId`](crate::ContactId),
-    /// one per point of `problem` (zero where the point is new).
-    pub carried: &'a [Impulse],
-    /// Whether each point matched a point of the previous step.
-    pub persisted: &'a [bool],
+    /// Per point of `problem`, the impulse carried over from the previous step by
+    /// [`ContactId`](crate::ContactId) (N·s), or `None` where the point is new.
+    pub carried: &'a [Option<Impulse>],
     /// Index of the step being solved (the first step of a world is 0).
     pub step: u64,
     /// Index of the island within the step (islands are ordered by their smallest body).
@@ -67,15 +65,13 @@ impl<'a> WarmStartContext<'a> {
     /// A context for a problem without a world (hand-built problems, tests, foreign engines).
     pub fn new(
         problem: &'a ContactProblem,
-        carried: &'a [Impulse],
-        persisted: &'a [bool],
+        carried: &'a [Option<Impulse>],
         step: u64,
         dt: Real,
     ) -> Self {
         Self {
             problem,
             carried,
-            persisted,
             step,
             island: 0,
             island_count: 1,
@@ -83,6 +79,20 @@ impl<'a> WarmStartContext<'a> {
             gravity: Vector::new(0.0, -9.81),
             world: None,
         }
+    }
+
+    /// The impulse carried to point `i`, zero where the point is new (or out of range).
+    pub fn carried_or_zero(&self, i: usize) -> Impulse {
+        self.carried
+            .get(i)
+            .copied()
+            .flatten()
+            .unwrap_or(Impulse::ZERO)
+    }
+
+    /// The carried impulses, zero where a point is new: what Box2D warm-starts from.
+    pub fn carried_impulses(&self) -> impl Iterator<Item = Impulse> + '_ {
+        self.carried.iter().map(|c| c.unwrap_or(Impulse::ZERO))
     }
 
     /// Sets the gravity (m/s²).
@@ -191,7 +201,7 @@ pub enum GuardPolicy {
 /// impl WarmStart for Scaled {
 ///     fn name(&self) -> &str { "scaled" }
 ///     fn warm_start(&mut self, ctx: &WarmStartContext<'_>, out: &mut [Impulse]) -> Result<(), WarmStartError> {
-///         for (o, c) in out.iter_mut().zip(ctx.carried) {
+///         for (o, c) in out.iter_mut().zip(ctx.carried_impulses()) {
 ///             *o = Impulse::new(self.0 * c.normal, self.0 * c.tangent);
 ///         }
 ///         Ok(())
@@ -200,7 +210,7 @@ pub enum GuardPolicy {
 ///
 /// let mut provider: Box<dyn WarmStart> = Box::new(Scaled(0.9));
 /// let problem = deepcontact_core::ContactProblem::new();
-/// let ctx = WarmStartContext::new(&problem, &[], &[], 0, 0.01);
+/// let ctx = WarmStartContext::new(&problem, &[], 0, 0.01);
 /// provider.warm_start(&ctx, &mut []).unwrap();
 /// assert_eq!(provider.name(), "scaled");
 /// ```
@@ -219,8 +229,9 @@ pub trait WarmStart: Send {
     /// fallback replaced the output, the solve report. Default: nothing.
     fn observe(&mut self, _ctx: &WarmStartContext<'_>, _seen: &Observation<'_>) {}
 
-    /// A new world begins: forget what was learned from the previous one that does not carry
-    /// over (per-contact history, step counters). Default: nothing.
+    /// A new world begins (a [`crate::World`] calls it before its first step): forget what
+    /// does not carry over from the previous world (per-contact history, step counters).
+    /// Default: nothing.
     fn reset(&mut self) {}
 
     /// Named numbers describing the provider's learned or adapted state (e.g. an online
@@ -289,7 +300,9 @@ impl WarmStart for CarriedWarmStart {
                 got: ctx.carried.len(),
             });
         }
-        out.copy_from_slice(ctx.carried);
+        for (o, c) in out.iter_mut().zip(ctx.carried_impulses()) {
+            *o = c;
+        }
         Ok(())
     }
 }

@@ -7,7 +7,7 @@ use crate::broad_phase::BroadPhase;
 use crate::contact::{ContactId, Impulse};
 use crate::error::CoreError;
 use crate::island::Islands;
-use crate::math::{Real, Vector};
+use crate::math::{Pose, Real, Vector, Velocity};
 use crate::narrow_phase::{NarrowPhase, RawContact};
 use crate::problem::{ContactProblem, PointDesc, ProblemBody};
 use crate::report::{SolveReport, StepReport};
@@ -147,14 +147,13 @@ struct Scratch {
     problems: Vec<ContactProblem>,
     /// Per island: index of each point in the narrow phase's contact list.
     point_source: Vec<Vec<u32>>,
-    carried: Vec<Impulse>,
-    persisted: Vec<bool>,
+    carried: Vec<Option<Impulse>>,
     /// Per narrow-phase contact: the impulse carried from the previous step, if its id matched.
     matched: Vec<Option<Impulse>>,
     warm: Vec<Impulse>,
     impulses: Vec<Impulse>,
-    velocities: Vec<(Vector, Real)>,
-    poses: Vec<(Vector, Real)>,
+    velocities: Vec<Velocity>,
+    poses: Vec<Pose>,
     report: SolveReport,
     local_index: Vec<u32>,
     manifold_bodies: Vec<(u32, u32)>,
@@ -370,6 +369,9 @@ impl World {
         let t_step = Instant::now();
         self.check_state()?;
         self.settings.validate()?;
+        if self.step_index == 0 {
+            warm_start.reset();
+        }
         let mut report = StepReport {
             step: self.step_index,
             ..StepReport::default()
@@ -453,23 +455,13 @@ impl World {
         let settings = self.settings;
         let n = s.problems[k].points.len();
         s.carried.clear();
-        s.persisted.clear();
-        for &c in &s.point_source[k] {
-            let matched = s.matched[c as usize];
-            s.carried.push(matched.unwrap_or(Impulse::ZERO));
-            s.persisted.push(matched.is_some());
-        }
+        s.carried
+            .extend(s.point_source[k].iter().map(|&c| s.matched[c as usize]));
         s.warm.clear();
         s.warm.resize(n, Impulse::ZERO);
-        let ctx = WarmStartContext::new(
-            &s.problems[k],
-            &s.carried,
-            &s.persisted,
-            self.step_index,
-            settings.dt,
-        )
-        .with_gravity(settings.gravity)
-        .with_world(self, k, s.problems.len());
+        let ctx = WarmStartContext::new(&s.problems[k], &s.carried, self.step_index, settings.dt)
+            .with_gravity(settings.gravity)
+            .with_world(self, k, s.problems.len());
 
         // Warm start, checked before use.
         let t0 = Instant::now();
@@ -501,7 +493,7 @@ impl World {
         s.impulses.extend_from_slice(&s.warm);
         s.velocities.clear();
         s.velocities
-            .resize(s.problems[k].bodies.len(), (Vector::zeros(), 0.0));
+            .resize(s.problems[k].bodies.len(), Velocity::default());
         let t0 = Instant::now();
         let solved = plugins.solver.solve(
             &s.problems[k],
@@ -526,11 +518,11 @@ impl World {
         for (p, imp) in s.point_source[k].iter().zip(&s.impulses) {
             s.solved[*p as usize] = *imp;
         }
-        for (pb, &(v, w)) in s.problems[k].bodies.iter().zip(&s.velocities) {
+        for (pb, v) in s.problems[k].bodies.iter().zip(&s.velocities) {
             let body = &mut self.bodies[pb.world_index as usize];
             if body.kind == BodyKind::Dynamic {
-                body.linear_velocity = v;
-                body.angular_velocity = w;
+                body.linear_velocity = v.linear;
+                body.angular_velocity = v.angular;
             }
         }
         Ok(())
@@ -573,17 +565,17 @@ impl World {
             s.poses.clear();
             s.poses.extend(problem.bodies.iter().map(|pb| {
                 let b = &self.bodies[pb.world_index as usize];
-                (b.position, b.angle)
+                Pose::new(b.position, b.angle)
             }));
             let pr =
                 position_solver.solve_positions(problem, &self.settings.position, &mut s.poses)?;
             report.position_iterations = report.position_iterations.max(pr.iterations);
             min_sep = min_sep.min(pr.min_separation);
-            for (pb, &(x, a)) in problem.bodies.iter().zip(&s.poses) {
+            for (pb, pose) in problem.bodies.iter().zip(&s.poses) {
                 let body = &mut self.bodies[pb.world_index as usize];
                 if body.kind == BodyKind::Dynamic {
-                    body.position = x;
-                    body.angle = a;
+                    body.position = pose.position;
+                    body.angle = pose.angle;
                 }
             }
         }

@@ -25,7 +25,7 @@
 //! impl WarmStart for Half {
 //!     fn name(&self) -> &str { "half" }
 //!     fn warm_start(&mut self, ctx: &WarmStartContext<'_>, out: &mut [Impulse]) -> Result<(), WarmStartError> {
-//!         for (o, c) in out.iter_mut().zip(ctx.carried) { *o = Impulse::new(0.5 * c.normal, 0.5 * c.tangent); }
+//!         for (o, c) in out.iter_mut().zip(ctx.carried_impulses()) { *o = Impulse::new(0.5 * c.normal, 0.5 * c.tangent); }
 //!         Ok(())
 //!     }
 //! }

@@ -6,6 +6,8 @@
 
 use std::path::Path;
 
+use deepcontact_core::Velocity;
+
 use deepcontact_core::math::Real;
 use deepcontact_core::registry::{Registry, Spec, split_spec_list};
 use deepcontact_core::{
@@ -189,7 +191,7 @@ pub fn solve_problem(data: &[u8]) {
     let start_finite = start.iter().all(Impulse::is_finite);
     for mut solver in solvers(&mut bytes) {
         let mut impulses = start.clone();
-        let mut velocities = vec![(Vector::zeros(), 0.0); problem.bodies.len() + body_delta];
+        let mut velocities = vec![Velocity::default(); problem.bodies.len() + body_delta];
         let mut report = SolveReport::default();
         let result = solver.solve(
             &problem,
@@ -233,7 +235,7 @@ pub fn solve_problem(data: &[u8]) {
         }
         for (b, v) in velocities.iter().enumerate() {
             assert!(
-                v.0.x.is_finite() && v.0.y.is_finite() && v.1.is_finite(),
+                v.linear.x.is_finite() && v.linear.y.is_finite() && v.angular.is_finite(),
                 "{name}: Ok with a non-finite velocity {v:?} of body {b}"
             );
         }
@@ -348,9 +350,8 @@ pub fn parse_specs(data: &[u8]) {
     let problem = small_problem();
     if let Ok(mut provider) = registry.build_provider(text) {
         if !slow {
-            let carried = vec![Impulse::new(1.0, 0.1); problem.len()];
-            let persisted = vec![true; problem.len()];
-            let ctx = WarmStartContext::new(&problem, &carried, &persisted, 1, 0.01);
+            let carried = vec![Some(Impulse::new(1.0, 0.1)); problem.len()];
+            let ctx = WarmStartContext::new(&problem, &carried, 1, 0.01);
             let mut out = vec![Impulse::ZERO; problem.len()];
             if provider.warm_start(&ctx, &mut out).is_ok() {
                 let report = SolveReport::default();
@@ -361,7 +362,7 @@ pub fn parse_specs(data: &[u8]) {
     if let Ok(mut solver) = registry.build_solver(text) {
         if !slow {
             let mut impulses = vec![Impulse::ZERO; problem.len()];
-            let mut velocities = vec![(Vector::zeros(), 0.0); problem.bodies.len()];
+            let mut velocities = vec![Velocity::default(); problem.bodies.len()];
             let mut report = SolveReport::default();
             let settings = SolverSettings::default();
             if solver

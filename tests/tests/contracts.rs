@@ -3,8 +3,8 @@
 use deepcontact_core::math::Real;
 use deepcontact_core::{
     BodyDesc, CarriedWarmStart, ContactProblem, CoreError, GuardPolicy, Impulse, Material,
-    ShapeDesc, SolveReport, SolverSettings, Vector, VelocitySolver, WarmStart, WarmStartContext,
-    WarmStartError, World, WorldSettings, ZeroWarmStart, scene,
+    Observation, ShapeDesc, SolveReport, SolverSettings, Vector, Velocity, VelocitySolver,
+    WarmStart, WarmStartContext, WarmStartError, World, WorldSettings, ZeroWarmStart, scene,
 };
 use deepcontact_pgs::PgsSolver;
 use deepcontact_tests::{build, run};
@@ -22,9 +22,14 @@ fn settled_problems() -> Vec<(ContactProblem, Vec<Impulse>)> {
             out: &mut [Impulse],
         ) -> Result<(), WarmStartError> {
             if ctx.step == 160 {
-                self.0.push((ctx.problem.clone(), ctx.carried.to_vec()));
+                self.0.push((
+                    ctx.problem.clone(),
+                    ctx.carried_impulses().collect::<Vec<_>>(),
+                ));
             }
-            out.copy_from_slice(ctx.carried);
+            for (o, c) in out.iter_mut().zip(ctx.carried_impulses()) {
+                *o = c;
+            }
             Ok(())
         }
     }
@@ -39,10 +44,10 @@ fn solve(
     problem: &ContactProblem,
     start: &[Impulse],
     settings: &SolverSettings,
-) -> (Vec<Impulse>, Vec<(Vector, Real)>, SolveReport) {
+) -> (Vec<Impulse>, Vec<Velocity>, SolveReport) {
     let mut solver = PgsSolver::new();
     let mut imp = start.to_vec();
-    let mut vel = vec![(Vector::zeros(), 0.0); problem.bodies.len()];
+    let mut vel = vec![Velocity::default(); problem.bodies.len()];
     let mut report = SolveReport::default();
     solver
         .solve(problem, settings, &mut imp, &mut vel, &mut report)
@@ -51,15 +56,15 @@ fn solve(
 }
 
 /// Net contact impulse (linear, angular) on each body of `problem`.
-fn net_impulses(problem: &ContactProblem, imp: &[Impulse]) -> Vec<(Vector, Real)> {
-    let mut net = vec![(Vector::zeros(), 0.0); problem.bodies.len()];
+fn net_impulses(problem: &ContactProblem, imp: &[Impulse]) -> Vec<Velocity> {
+    let mut net = vec![Velocity::default(); problem.bodies.len()];
     for (p, l) in problem.points.iter().zip(imp) {
         let f = l.normal * p.normal + l.tangent * p.tangent();
         let (a, b) = (p.body_a as usize, p.body_b as usize);
-        net[a].0 -= f;
-        net[a].1 -= deepcontact_core::math::cross(&p.r_a, &f);
-        net[b].0 += f;
-        net[b].1 += deepcontact_core::math::cross(&p.r_b, &f);
+        net[a].linear -= f;
+        net[a].angular -= deepcontact_core::math::cross(&p.r_a, &f);
+        net[b].linear += f;
+        net[b].angular += deepcontact_core::math::cross(&p.r_b, &f);
     }
     net
 }
@@ -84,9 +89,9 @@ fn converged_solves_from_none_and_builtin_agree() {
         // Velocities are unique, and so is each body's net contact impulse Jᵀλ = M(v − v*);
         // the impulses themselves are not (a circle touching three neighbours is statically
         // indeterminate), so the contract is checked on what the physics determines.
-        for ((v1, w1), (v2, w2)) in va.iter().zip(&vb) {
+        for (v1, v2) in va.iter().zip(&vb) {
             assert!(
-                (v1 - v2).norm() < 1e-5 && (w1 - w2).abs() < 1e-5,
+                (v1.linear - v2.linear).norm() < 1e-5 && (v1.angular - v2.angular).abs() < 1e-5,
                 "velocities differ: {v1:?} {v2:?}"
             );
         }
@@ -97,7 +102,9 @@ fn converged_solves_from_none_and_builtin_agree() {
             .enumerate()
             .filter(|(i, _)| problem.bodies[*i].inv_mass > 0.0)
         {
-            let d = (x.0 - y.0).norm().max((x.1 - y.1).abs());
+            let d = (x.linear - y.linear)
+                .norm()
+                .max((x.angular - y.angular).abs());
             assert!(d < 1e-4, "body {i}: net impulse differs by {d}");
         }
     }
@@ -309,7 +316,7 @@ fn malformed_problems_are_rejected_by_the_solver() {
     let (mut problem, _) = settled_problems().swap_remove(0);
     problem.points[0].body_b = 10_000;
     let mut imp = vec![Impulse::ZERO; problem.len()];
-    let mut vel = vec![(Vector::zeros(), 0.0); problem.bodies.len()];
+    let mut vel = vec![Velocity::default(); problem.bodies.len()];
     let err = PgsSolver::new()
         .solve(
             &problem,
@@ -341,4 +348,55 @@ fn malformed_problems_are_rejected_by_the_solver() {
         ),
         "{err}"
     );
+}
+
+/// A provider that writes NaN (so every island falls back) and records what the world tells it.
+#[derive(Default)]
+struct Probe {
+    resets: usize,
+    gravity: Option<Vector>,
+    fell_back: Vec<bool>,
+    zero_starts: bool,
+}
+
+impl WarmStart for Probe {
+    fn name(&self) -> &str {
+        "probe"
+    }
+    fn warm_start(
+        &mut self,
+        ctx: &WarmStartContext<'_>,
+        out: &mut [Impulse],
+    ) -> Result<(), WarmStartError> {
+        self.gravity = Some(ctx.gravity);
+        out.fill(Impulse::new(Real::NAN, 0.0));
+        Ok(())
+    }
+    fn observe(&mut self, _ctx: &WarmStartContext<'_>, seen: &Observation<'_>) {
+        self.fell_back.push(seen.fell_back);
+        self.zero_starts &= seen.start.iter().all(|i| *i == Impulse::ZERO);
+    }
+    fn reset(&mut self) {
+        self.resets += 1;
+    }
+}
+
+#[test]
+fn observe_sees_the_zero_start_of_a_fallback_and_the_world_resets_the_provider_once() {
+    let mut world = build(&scene::pile(12345, 100).unwrap());
+    let mut probe = Probe {
+        zero_starts: true,
+        ..Probe::default()
+    };
+    let reports = run(&mut world, &mut probe, 45, |_, _| {}).unwrap();
+    let fallbacks: usize = reports.iter().map(|r| r.fallbacks).sum();
+    assert!(fallbacks > 0, "the pile touches before step 45");
+    assert_eq!(probe.fell_back.len(), fallbacks);
+    assert!(probe.fell_back.iter().all(|&f| f));
+    assert!(
+        probe.zero_starts,
+        "the start used after a fallback is zeros"
+    );
+    assert_eq!(probe.resets, 1, "reset before the first step only");
+    assert_eq!(probe.gravity, Some(world.settings().gravity));
 }

@@ -8,6 +8,8 @@
 //!
 //! Solvers: PGS (coloured and sequential order), PSOR and semismooth Newton.
 
+use deepcontact_core::Velocity;
+
 use deepcontact_core::math::Real;
 use deepcontact_core::{
     ContactId, ContactProblem, Impulse, PointDesc, ProblemBody, SolveReport, SolverSettings,
@@ -201,7 +203,7 @@ fn starts(problem: &ContactProblem, u: &[Real]) -> [(&'static str, Vec<Impulse>)
 
 struct Outcome {
     impulses: Vec<Impulse>,
-    velocities: Vec<(Vector, Real)>,
+    velocities: Vec<Velocity>,
     report: SolveReport,
 }
 
@@ -212,7 +214,7 @@ fn solve(
     start: &[Impulse],
 ) -> Outcome {
     let mut impulses = start.to_vec();
-    let mut velocities = vec![(Vector::zeros(), 0.0); problem.bodies.len()];
+    let mut velocities = vec![Velocity::default(); problem.bodies.len()];
     let mut report = SolveReport::default();
     solver(name)
         .solve(
@@ -252,7 +254,7 @@ fn check_admissible(
     }
     for (b, v) in out.velocities.iter().enumerate() {
         prop_assert!(
-            v.0.x.is_finite() && v.0.y.is_finite() && v.1.is_finite(),
+            v.linear.x.is_finite() && v.linear.y.is_finite() && v.angular.is_finite(),
             "{name}/{start}: body {b} velocity {v:?}"
         );
     }
@@ -282,10 +284,14 @@ fn check_report(
 }
 
 /// Largest velocity difference over the bodies, relative to the size of the velocities.
-fn velocity_gap(a: &[(Vector, Real)], b: &[(Vector, Real)]) -> Real {
+fn velocity_gap(a: &[Velocity], b: &[Velocity]) -> Real {
     a.iter()
         .zip(b)
-        .map(|(x, y)| (x.0 - y.0).norm().max((x.1 - y.1).abs()))
+        .map(|(x, y)| {
+            (x.linear - y.linear)
+                .norm()
+                .max((x.angular - y.angular).abs())
+        })
         .fold(0.0, Real::max)
 }
 
@@ -333,7 +339,7 @@ proptest! {
             .map(|b| b.linear_velocity.norm().max(b.angular_velocity.abs()))
             .fold(1.0, Real::max);
         let tol = 1e-6 * scale * (1.0 + problem.len() as Real);
-        let mut reference: Option<(String, Vec<(Vector, Real)>)> = None;
+        let mut reference: Option<(String, Vec<Velocity>)> = None;
         for name in SOLVERS {
             // Newton converges in a few iterations or not at all: a small cap keeps it cheap.
             let settings = if name == "newton" {

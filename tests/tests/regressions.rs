@@ -7,6 +7,8 @@ mod harness;
 
 use std::path::Path;
 
+use deepcontact_core::Velocity;
+
 use deepcontact_core::math::Real;
 use deepcontact_core::{
     ContactId, ContactProblem, Impulse, PointDesc, ProblemBody, SolveReport, SolverSettings,
@@ -123,7 +125,7 @@ fn regression_pgs_panicked_on_a_negative_normal_start() {
     })
     .unwrap();
     let mut imp = vec![Impulse::new(-1.0, 0.3)];
-    let mut vel = vec![(Vector::zeros(), 0.0); 2];
+    let mut vel = vec![Velocity::default(); 2];
     PgsSolver::new()
         .solve(
             &p,

@@ -18,7 +18,12 @@ pub fn bench(c: &mut Criterion) {
     let mut positions: Vec<Vector> = Vec::new();
     let mut values: Vec<f64> = Vec::new();
     for island in &snap.islands {
-        for (p, imp) in island.problem.points.iter().zip(&island.carried) {
+        for (p, imp) in island
+            .problem
+            .points
+            .iter()
+            .zip(island.carried.iter().flatten())
+        {
             positions.push(p.point);
             values.extend([imp.normal, imp.tangent]);
         }

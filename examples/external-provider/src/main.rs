@@ -7,6 +7,8 @@
 //!
 //! `cargo run --release` here (CI runs it with `-- --quick`).
 
+use deepcontact_core::Velocity;
+
 use deepcontact_core::{
     ContactProblem, Impulse, Observation, PointDesc, ProblemBody, ProviderInfo, Real, SolveReport,
     SolverSettings, Vector, VelocitySolver, WarmStart, WarmStartContext, WarmStartError,
@@ -33,8 +35,7 @@ impl WarmStart for DampedCarry {
     ) -> Result<(), WarmStartError> {
         let g = ctx.gravity.norm();
         for (i, (o, p)) in out.iter_mut().zip(&ctx.problem.points).enumerate() {
-            *o = if ctx.persisted[i] {
-                let c = ctx.carried[i];
+            *o = if let Some(c) = ctx.carried[i] {
                 Impulse::new(self.scale * c.normal, self.scale * c.tangent)
             } else {
                 let inv_mass = ctx.problem.bodies[p.body_b as usize].inv_mass;
@@ -120,9 +121,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     // 3. The solver embedded on a hand-built problem, started by our provider.
     let problem = three_box_stack();
-    let carried = vec![Impulse::ZERO; problem.len()];
-    let persisted = vec![false; problem.len()];
-    let ctx = WarmStartContext::new(&problem, &carried, &persisted, 0, 0.01);
+    let carried = vec![None; problem.len()];
+    let ctx = WarmStartContext::new(&problem, &carried, 0, 0.01);
     let mut provider = DampedCarry {
         scale: 0.95,
         fallbacks: 0,
@@ -130,7 +130,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut impulses = vec![Impulse::ZERO; problem.len()];
     provider.warm_start(&ctx, &mut impulses)?;
     let start = impulses.clone();
-    let mut velocities = vec![(Vector::zeros(), 0.0); problem.bodies.len()];
+    let mut velocities = vec![Velocity::default(); problem.bodies.len()];
     let mut report = SolveReport::default();
     let mut solver = deepcontact_pgs::PgsSolver::new();
     let settings = SolverSettings {
@@ -156,7 +156,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // The ground carries three boxes: each step it must stop them (0.0981 m/s each) and hold
     // their weight, so the bottom manifold's impulse is 3 × 0.0981 kg·m/s.
     let bottom = impulses[0].normal + impulses[1].normal;
-    if (bottom - 3.0 * 0.0981).abs() > 1e-3 || velocities.iter().skip(1).any(|v| v.0.norm() > 1e-6)
+    if (bottom - 3.0 * 0.0981).abs() > 1e-3
+        || velocities.iter().skip(1).any(|v| v.linear.norm() > 1e-6)
     {
         return Err(
             format!("unexpected solution: bottom {bottom}, velocities {velocities:?}").into(),

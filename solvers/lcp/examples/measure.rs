@@ -20,7 +20,7 @@ use deepcontact_pgs::{PgsPositionSolver, PgsSolver};
 struct CopyWarmStart {
     solver: NewtonSolver,
     report: SolveReport,
-    velocities: Vec<(deepcontact_core::Vector, f64)>,
+    velocities: Vec<deepcontact_core::Velocity>,
 }
 
 impl WarmStart for CopyWarmStart {
@@ -32,7 +32,9 @@ impl WarmStart for CopyWarmStart {
         ctx: &WarmStartContext<'_>,
         out: &mut [Impulse],
     ) -> Result<(), WarmStartError> {
-        out.copy_from_slice(ctx.carried);
+        for (o, c) in out.iter_mut().zip(ctx.carried_impulses()) {
+            *o = c;
+        }
         self.velocities
             .resize(ctx.problem.bodies.len(), Default::default());
         let tight = SolverSettings {

@@ -26,7 +26,7 @@
 //! cheap. Both paths give the same matrix (tested) and all buffers are reused between
 //! assemblies.
 
-use deepcontact_core::math::{Real, Vector, cross};
+use deepcontact_core::math::{Real, Vector, Velocity, cross};
 use deepcontact_core::{ContactProblem, Impulse};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Accum, Mat, MatMut, MatRef, Par};
@@ -577,9 +577,9 @@ impl Delassus {
     }
 
     /// Body velocities `v = v_free + M⁻¹ Jᵀ λ`, one `(linear, angular)` per body.
-    pub fn body_velocities(&self, lambda: &[Real], out: &mut [(Vector, Real)]) {
+    pub fn body_velocities(&self, lambda: &[Real], out: &mut [Velocity]) {
         for (o, v) in out.iter_mut().zip(&self.v_free) {
-            *o = (Vector::new(v[0], v[1]), v[2]);
+            *o = Velocity::new(Vector::new(v[0], v[1]), v[2]);
         }
         for (r, &l) in self.jac.iter().zip(lambda) {
             if l == 0.0 {
@@ -588,9 +588,9 @@ impl Delassus {
             for (body, j) in [(r.a, &r.ja), (r.b, &r.jb)] {
                 let m = &self.inv_mass[body as usize];
                 if let Some(o) = out.get_mut(body as usize) {
-                    o.0.x += m[0] * j[0] * l;
-                    o.0.y += m[1] * j[1] * l;
-                    o.1 += m[2] * j[2] * l;
+                    o.linear.x += m[0] * j[0] * l;
+                    o.linear.y += m[1] * j[1] * l;
+                    o.angular += m[2] * j[2] * l;
                 }
             }
         }
@@ -739,18 +739,18 @@ mod tests {
             for j in 0..4 {
                 let mut x = [0.0; 4];
                 x[j] = 1.0;
-                let mut v = vec![(Vector::zeros(), 0.0); 3];
+                let mut v = vec![Velocity::default(); 3];
                 d.body_velocities(&x, &mut v);
                 let mut w = [0.0; 4];
                 d.velocity_of(&x, &mut w);
                 for i in 0..4 {
                     let pt = &p.points[i / 2];
                     let dir = if i % 2 == 0 { pt.normal } else { pt.tangent() };
-                    let rel = |v: &[(Vector, Real)]| {
+                    let rel = |v: &[Velocity]| {
                         let (va, vb) = (v[pt.body_a as usize], v[pt.body_b as usize]);
-                        let dv = vb.0 + deepcontact_core::math::cross_sv(vb.1, &pt.r_b)
-                            - va.0
-                            - deepcontact_core::math::cross_sv(va.1, &pt.r_a);
+                        let dv = vb.linear + deepcontact_core::math::cross_sv(vb.angular, &pt.r_b)
+                            - va.linear
+                            - deepcontact_core::math::cross_sv(va.angular, &pt.r_a);
                         dv.dot(&dir)
                     };
                     let bias = if i % 2 == 0 { pt.velocity_bias } else { 0.0 };

@@ -2,7 +2,7 @@
 
 use std::time::Instant;
 
-use deepcontact_core::math::{Real, Vector};
+use deepcontact_core::math::{Real, Velocity};
 use deepcontact_core::{
     ContactProblem, CoreError, Impulse, SolveReport, SolverSettings, VelocitySolver,
 };
@@ -289,7 +289,7 @@ impl NewtonSolver {
         problem: &ContactProblem,
         settings: &SolverSettings,
         impulses: &mut [Impulse],
-        velocities: &mut [(Vector, Real)],
+        velocities: &mut [Velocity],
         report: &mut SolveReport,
     ) -> Result<(), LcpError> {
         let t0 = Instant::now();
@@ -738,7 +738,7 @@ impl VelocitySolver for NewtonSolver {
         problem: &ContactProblem,
         settings: &SolverSettings,
         impulses: &mut [Impulse],
-        velocities: &mut [(Vector, Real)],
+        velocities: &mut [Velocity],
         report: &mut SolveReport,
     ) -> Result<(), CoreError> {
         self.solve_lcp(problem, settings, impulses, velocities, report)

@@ -2,7 +2,7 @@
 
 use std::time::Instant;
 
-use deepcontact_core::math::{Real, Vector};
+use deepcontact_core::math::{Real, Velocity};
 use deepcontact_core::{
     ContactProblem, CoreError, Impulse, SolveReport, SolverSettings, VelocitySolver,
 };
@@ -98,7 +98,7 @@ impl PsorSolver {
         problem: &ContactProblem,
         settings: &SolverSettings,
         impulses: &mut [Impulse],
-        velocities: &mut [(Vector, Real)],
+        velocities: &mut [Velocity],
         report: &mut SolveReport,
     ) -> Result<(), LcpError> {
         let t0 = Instant::now();
@@ -168,7 +168,7 @@ impl VelocitySolver for PsorSolver {
         problem: &ContactProblem,
         settings: &SolverSettings,
         impulses: &mut [Impulse],
-        velocities: &mut [(Vector, Real)],
+        velocities: &mut [Velocity],
         report: &mut SolveReport,
     ) -> Result<(), CoreError> {
         self.solve_lcp(problem, settings, impulses, velocities, report)

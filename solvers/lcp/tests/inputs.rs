@@ -3,7 +3,8 @@
 mod common;
 
 use common::{Kind, random_problem, run};
-use deepcontact_core::math::{Real, Vector};
+use deepcontact_core::Velocity;
+use deepcontact_core::math::Real;
 use deepcontact_core::{
     ContactProblem, CoreError, Impulse, SolveReport, SolverSettings, VelocitySolver,
 };
@@ -22,7 +23,7 @@ fn solve(
     imp: &mut [Impulse],
     bodies: usize,
 ) -> Result<SolveReport, CoreError> {
-    let mut vel = vec![(Vector::zeros(), 0.0); bodies];
+    let mut vel = vec![Velocity::default(); bodies];
     let mut report = SolveReport::default();
     solver
         .solve(p, settings, imp, &mut vel, &mut report)
@@ -206,7 +207,7 @@ fn odd_starts() {
     }
     let mut newton = NewtonSolver::new();
     let mut imp = vec![Impulse::new(Real::INFINITY, 0.0); n];
-    let mut vel = vec![(Vector::zeros(), 0.0); p.bodies.len()];
+    let mut vel = vec![Velocity::default(); p.bodies.len()];
     let e = newton
         .solve_lcp(
             &p,

@@ -194,7 +194,9 @@ fn hostile_problems_fail_gracefully() {
             let (imp, vel, report) = run(solver, &p, &tight(300), &zeros);
             assert!(
                 imp.iter().all(|i| i.is_finite())
-                    && vel.iter().all(|v| v.0.x.is_finite() && v.1.is_finite())
+                    && vel
+                        .iter()
+                        .all(|v| v.linear.x.is_finite() && v.angular.is_finite())
             );
             assert_eq!(report.residual_inf.len(), report.iterations as usize);
             // The reported natural residual is the one of the returned impulses.

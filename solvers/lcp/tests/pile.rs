@@ -73,7 +73,8 @@ fn psor_matches_pgs_on_the_pile() {
                     let d = max_diff(&a, &b);
                     assert!(d < 1e-5, "{ctx}: impulses differ by {d}");
                     let dv = va.iter().zip(&vb).fold(0.0, |m: Real, (x, y)| {
-                        m.max((x.0 - y.0).norm()).max((x.1 - y.1).abs())
+                        m.max((x.linear - y.linear).norm())
+                            .max((x.angular - y.angular).abs())
                     });
                     assert!(dv < 1e-6, "{ctx}: velocities differ by {dv}");
                     for (x, y) in ra.residual_inf.iter().zip(&rb.residual_inf) {
@@ -185,7 +186,8 @@ fn newton_and_pgs_agree_on_velocities() {
         let (_, vb, rb) = run(&mut NewtonSolver::new(), p, &tight, &f.carried[k]);
         assert!(rb.converged, "island {k}");
         let dv = va.iter().zip(&vb).fold(0.0, |m: Real, (x, y)| {
-            m.max((x.0 - y.0).norm()).max((x.1 - y.1).abs())
+            m.max((x.linear - y.linear).norm())
+                .max((x.angular - y.angular).abs())
         });
         assert!(dv < 1e-5, "island {k}: velocities differ by {dv}");
     }
@@ -242,7 +244,8 @@ fn dense_and_sparse_assembly_agree() {
         // round-off of different size in its null space, which can steer the iterates to
         // different impulses — but not to different velocities.
         let dv = out[0].1.iter().zip(&out[1].1).fold(0.0, |m: Real, (x, y)| {
-            m.max((x.0 - y.0).norm()).max((x.1 - y.1).abs())
+            m.max((x.linear - y.linear).norm())
+                .max((x.angular - y.angular).abs())
         });
         assert!(
             dv < 1e-8,

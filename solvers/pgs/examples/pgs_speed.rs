@@ -3,8 +3,10 @@
 
 use std::time::Instant;
 
+use deepcontact_core::Velocity;
+
 use deepcontact_core::{
-    CarriedWarmStart, ContactProblem, Impulse, SolveReport, SolverSettings, Vector, VelocitySolver,
+    CarriedWarmStart, ContactProblem, Impulse, SolveReport, SolverSettings, VelocitySolver,
     WarmStart, WarmStartContext, WarmStartError, WorldSettings, scene,
 };
 use deepcontact_pgs::{Ordering, PgsPositionSolver, PgsSettings, PgsSolver};
@@ -20,7 +22,10 @@ impl WarmStart for Record {
         out: &mut [Impulse],
     ) -> Result<(), WarmStartError> {
         if ctx.step == self.1 {
-            self.0.push((ctx.problem.clone(), ctx.carried.to_vec()));
+            self.0.push((
+                ctx.problem.clone(),
+                ctx.carried_impulses().collect::<Vec<_>>(),
+            ));
         }
         CarriedWarmStart.warm_start(ctx, out)
     }
@@ -74,7 +79,7 @@ fn main() {
             let t = Instant::now();
             for (problem, carried) in &rec.0 {
                 let mut imp = carried.clone();
-                let mut vel = vec![(Vector::zeros(), 0.0); problem.bodies.len()];
+                let mut vel = vec![Velocity::default(); problem.bodies.len()];
                 solver
                     .solve(problem, &settings, &mut imp, &mut vel, &mut report)
                     .unwrap();

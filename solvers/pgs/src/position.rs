@@ -1,6 +1,6 @@
 //! The position pass: Box2D v2.4's non-linear Gauss-Seidel on the contact separations.
 
-use deepcontact_core::math::{Real, Vector, cross, rotate};
+use deepcontact_core::math::{Pose, Real, Vector, cross, rotate};
 use deepcontact_core::{
     ContactProblem, CoreError, PositionReport, PositionSettings, PositionSolver,
 };
@@ -31,7 +31,7 @@ impl PositionSolver for PgsPositionSolver {
         &mut self,
         problem: &ContactProblem,
         settings: &PositionSettings,
-        poses: &mut [(Vector, Real)],
+        poses: &mut [Pose],
     ) -> Result<PositionReport, CoreError> {
         settings.validate()?;
         if poses.len() != problem.bodies.len() {
@@ -56,7 +56,16 @@ impl PositionSolver for PgsPositionSolver {
             for (p, &(ra0, rb0)) in problem.points.iter().zip(&self.anchors) {
                 let (ia, ib) = (p.body_a as usize, p.body_b as usize);
                 let (a0, b0) = (&problem.bodies[ia], &problem.bodies[ib]);
-                let ((ca, ta), (cb, tb)) = (poses[ia], poses[ib]);
+                let (
+                    Pose {
+                        position: ca,
+                        angle: ta,
+                    },
+                    Pose {
+                        position: cb,
+                        angle: tb,
+                    },
+                ) = (poses[ia], poses[ib]);
                 let ra = rotate(&ra0, ta - a0.angle);
                 let rb = rotate(&rb0, tb - b0.angle);
                 // s = s0 + n · [(cB + rB) − (cA + rA) − ((cB0 + rB0) − (cA0 + rA0))]
@@ -74,10 +83,10 @@ impl PositionSolver for PgsPositionSolver {
                 let impulse = if k > 0.0 { -c / k } else { 0.0 };
                 max_corr = max_corr.max(c.abs());
                 let pv = impulse * p.normal;
-                poses[ia].0 -= a0.inv_mass * pv;
-                poses[ia].1 -= a0.inv_inertia * cross(&ra, &pv);
-                poses[ib].0 += b0.inv_mass * pv;
-                poses[ib].1 += b0.inv_inertia * cross(&rb, &pv);
+                poses[ia].position -= a0.inv_mass * pv;
+                poses[ia].angle -= a0.inv_inertia * cross(&ra, &pv);
+                poses[ib].position += b0.inv_mass * pv;
+                poses[ib].angle += b0.inv_inertia * cross(&rb, &pv);
             }
             report.iterations = it + 1;
             report.min_separation = min_sep;
@@ -88,7 +97,7 @@ impl PositionSolver for PgsPositionSolver {
         }
         if poses
             .iter()
-            .any(|(c, a)| !(c.x.is_finite() && c.y.is_finite() && a.is_finite()))
+            .any(|p| !(p.position.x.is_finite() && p.position.y.is_finite() && p.angle.is_finite()))
         {
             return Err(CoreError::Solver {
                 solver: "ngs".into(),

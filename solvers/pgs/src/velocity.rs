@@ -6,7 +6,7 @@
 
 use std::time::Instant;
 
-use deepcontact_core::math::{Real, Vector, cross};
+use deepcontact_core::math::{Real, Vector, Velocity, cross};
 use deepcontact_core::{
     ContactProblem, CoreError, Impulse, SolveReport, SolverSettings, VelocitySolver,
 };
@@ -735,7 +735,7 @@ impl VelocitySolver for PgsSolver {
         problem: &ContactProblem,
         settings: &SolverSettings,
         impulses: &mut [Impulse],
-        velocities: &mut [(Vector, Real)],
+        velocities: &mut [Velocity],
         report: &mut SolveReport,
     ) -> Result<(), CoreError> {
         let t0 = Instant::now();
@@ -789,7 +789,7 @@ impl VelocitySolver for PgsSolver {
             *imp = Impulse::new(r.ln, r.lt);
         }
         for (out, v) in velocities.iter_mut().zip(&self.vel) {
-            *out = (Vector::new(v.vx, v.vy), v.w);
+            *out = Velocity::new(Vector::new(v.vx, v.vy), v.w);
         }
         report.natural_residual = self.natural_residual();
         report.seconds = t0.elapsed().as_secs_f64();
@@ -862,7 +862,7 @@ mod tests {
                 ..PgsSettings::default()
             });
             let mut imp = vec![Impulse::ZERO; problem.len()];
-            let mut vel = vec![(Vector::zeros(), 0.0); problem.bodies.len()];
+            let mut vel = vec![Velocity::default(); problem.bodies.len()];
             let mut report = SolveReport::default();
             solver
                 .solve(&problem, &settings, &mut imp, &mut vel, &mut report)
@@ -870,8 +870,10 @@ mod tests {
             assert!(report.converged);
             out.push(vel);
         }
-        for ((v1, w1), (v2, w2)) in out[0].iter().zip(&out[1]) {
-            assert!((v1 - v2).norm() < 1e-6 && (w1 - w2).abs() < 1e-6);
+        for (v1, v2) in out[0].iter().zip(&out[1]) {
+            assert!(
+                (v1.linear - v2.linear).norm() < 1e-6 && (v1.angular - v2.angular).abs() < 1e-6
+            );
         }
     }
 
@@ -885,7 +887,7 @@ mod tests {
     ) -> (Vec<u64>, Vec<u64>, u32) {
         let mut solver = PgsSolver::with_settings(settings);
         let mut imp = start.to_vec();
-        let mut vel = vec![(Vector::zeros(), 0.0); problem.bodies.len()];
+        let mut vel = vec![Velocity::default(); problem.bodies.len()];
         let mut report = SolveReport::default();
         let stop = SolverSettings {
             max_iterations: iterations,
@@ -899,7 +901,13 @@ mod tests {
                 .flat_map(|i| [i.normal.to_bits(), i.tangent.to_bits()])
                 .collect(),
             vel.iter()
-                .flat_map(|(v, w)| [v.x.to_bits(), v.y.to_bits(), w.to_bits()])
+                .flat_map(|v| {
+                    [
+                        v.linear.x.to_bits(),
+                        v.linear.y.to_bits(),
+                        v.angular.to_bits(),
+                    ]
+                })
                 .collect(),
             report.iterations,
         )

@@ -33,7 +33,7 @@ impl WarmStart for ScaledBuiltin {
                 got: ctx.carried.len(),
             });
         }
-        for (o, c) in out.iter_mut().zip(ctx.carried) {
+        for (o, c) in out.iter_mut().zip(ctx.carried_impulses()) {
             *o = Impulse::new(self.factor * c.normal, self.factor * c.tangent);
         }
         Ok(())

@@ -13,7 +13,7 @@ use deepcontact_core::SpecError;
 ///
 /// let mut provider = ConstantWarmStart::bad();
 /// let problem = ContactProblem::new();
-/// let ctx = WarmStartContext::new(&problem, &[], &[], 0, 0.01);
+/// let ctx = WarmStartContext::new(&problem, &[], 0, 0.01);
 /// provider.warm_start(&ctx, &mut []).unwrap();
 /// assert_eq!(provider.impulse(), Impulse::new(50.0, 50.0));
 /// ```

@@ -1,8 +1,10 @@
 //! The `copy` provider: an oracle that solves the step's problem first.
 
+use deepcontact_core::Velocity;
+
 use deepcontact_core::{
-    Impulse, Real, SolveReport, SolverSettings, Vector, VelocitySolver, WarmStart,
-    WarmStartContext, WarmStartError,
+    Impulse, Real, SolveReport, SolverSettings, VelocitySolver, WarmStart, WarmStartContext,
+    WarmStartError,
 };
 
 use deepcontact_core::SpecError;
@@ -56,7 +58,7 @@ pub struct OracleWarmStart {
     config: OracleConfig,
     settings: SolverSettings,
     impulses: Vec<Impulse>,
-    velocities: Vec<(Vector, Real)>,
+    velocities: Vec<Velocity>,
     report: SolveReport,
 }
 
@@ -134,7 +136,7 @@ impl WarmStart for OracleWarmStart {
         self.impulses.resize(problem.len(), Impulse::ZERO);
         self.velocities.clear();
         self.velocities
-            .resize(problem.bodies.len(), (Vector::zeros(), 0.0));
+            .resize(problem.bodies.len(), Velocity::default());
         self.report.clear();
         self.solver
             .solve(

@@ -75,7 +75,7 @@ impl RandomConfig {
 ///
 /// let mut provider = RandomWarmStart::new(RandomConfig { seed: 3, ..Default::default() }).unwrap();
 /// let problem = ContactProblem::new();
-/// let ctx = WarmStartContext::new(&problem, &[], &[], 0, 0.01);
+/// let ctx = WarmStartContext::new(&problem, &[], 0, 0.01);
 /// provider.warm_start(&ctx, &mut []).unwrap();
 /// assert_eq!(provider.name(), "random");
 /// ```

@@ -19,7 +19,7 @@ use deepcontact_core::SpecError;
 /// let mut rounded = Rounded::new(inner, 2).unwrap();
 /// assert_eq!(rounded.name(), "c2");
 /// let problem = ContactProblem::new();
-/// let ctx = WarmStartContext::new(&problem, &[], &[], 0, 0.01);
+/// let ctx = WarmStartContext::new(&problem, &[], 0, 0.01);
 /// let mut out = [Impulse::ZERO; 1];
 /// rounded.warm_start(&ctx, &mut out).unwrap();
 /// assert_eq!(out[0], Impulse::new(1.23, -0.99));

@@ -2,9 +2,11 @@
 
 mod common;
 
+use deepcontact_core::Velocity;
+
 use deepcontact_core::warm_start::check_output;
 use deepcontact_core::{
-    ContactProblem, Impulse, SolveReport, SolverSettings, Vector, VelocitySolver, WarmStart,
+    ContactProblem, Impulse, SolveReport, SolverSettings, VelocitySolver, WarmStart,
     WarmStartContext, WarmStartError,
 };
 use deepcontact_pgs::PgsSolver;
@@ -13,9 +15,8 @@ use deepcontact_warmstart::{
 };
 
 fn provide(provider: &mut dyn WarmStart, problem: &ContactProblem) -> Vec<Impulse> {
-    let carried = vec![Impulse::ZERO; problem.len()];
-    let persisted = vec![false; problem.len()];
-    let ctx = WarmStartContext::new(problem, &carried, &persisted, 1, 0.01);
+    let carried = vec![None; problem.len()];
+    let ctx = WarmStartContext::new(problem, &carried, 1, 0.01);
     let mut out = vec![Impulse::ZERO; problem.len()];
     provider.warm_start(&ctx, &mut out).unwrap();
     check_output(&out, problem.len()).unwrap();
@@ -25,7 +26,7 @@ fn provide(provider: &mut dyn WarmStart, problem: &ContactProblem) -> Vec<Impuls
 /// Solves `problem` with PGS from `start` under the world's default stop rule.
 fn solve_from(problem: &ContactProblem, start: &[Impulse]) -> (Vec<Impulse>, SolveReport) {
     let mut impulses = start.to_vec();
-    let mut velocities = vec![(Vector::zeros(), 0.0); problem.bodies.len()];
+    let mut velocities = vec![Velocity::default(); problem.bodies.len()];
     let mut report = SolveReport::default();
     PgsSolver::new()
         .solve(
@@ -173,7 +174,7 @@ fn copy_is_the_converged_solution_and_the_next_solve_is_nearly_free() {
 #[test]
 fn copy_rejects_a_wrong_output_length() {
     let problem = common::column(2);
-    let ctx = WarmStartContext::new(&problem, &[], &[], 0, 0.01);
+    let ctx = WarmStartContext::new(&problem, &[], 0, 0.01);
     let mut out = vec![Impulse::ZERO; 1];
     let err = OracleWarmStart::pgs()
         .warm_start(&ctx, &mut out)
@@ -213,9 +214,8 @@ fn rounding_wrapper_rounds_clamps_and_drops_negative_zero() {
         Impulse::new(2.5, 2.5),
         Impulse::new(0.0, -0.0),
     ];
-    let carried = vec![Impulse::ZERO; 4];
-    let persisted = vec![false; 4];
-    let ctx = WarmStartContext::new(&problem, &carried, &persisted, 0, 0.01);
+    let carried = vec![None; 4];
+    let ctx = WarmStartContext::new(&problem, &carried, 0, 0.01);
     let mut out = vec![Impulse::ZERO; 4];
 
     let mut two = Rounded::new(Fixed(values.clone()), 2).unwrap();

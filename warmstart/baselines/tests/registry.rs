@@ -137,7 +137,7 @@ impl WarmStart for Half {
         ctx: &WarmStartContext<'_>,
         out: &mut [Impulse],
     ) -> Result<(), WarmStartError> {
-        for (o, c) in out.iter_mut().zip(ctx.carried) {
+        for (o, c) in out.iter_mut().zip(ctx.carried_impulses()) {
             *o = Impulse::new(0.5 * c.normal, 0.5 * c.tangent);
         }
         Ok(())

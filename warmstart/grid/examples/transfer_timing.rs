@@ -208,9 +208,9 @@ fn main() {
         .iter()
         .map(|pr| vec![Impulse::ZERO; pr.points.len()])
         .collect();
-    let flags: Vec<Vec<bool>> = problems
+    let none: Vec<Vec<Option<Impulse>>> = problems
         .iter()
-        .map(|pr| vec![false; pr.points.len()])
+        .map(|pr| vec![None; pr.points.len()])
         .collect();
     let mut outs = zero.clone();
     time(
@@ -218,7 +218,7 @@ fn main() {
         reps,
         || {
             for (k, pr) in problems.iter().enumerate() {
-                let ctx = WarmStartContext::new(pr, &zero[k], &flags[k], 0, 0.01).with_world(
+                let ctx = WarmStartContext::new(pr, &none[k], 0, 0.01).with_world(
                     &world,
                     k,
                     problems.len(),

@@ -110,19 +110,16 @@ fn warmed_up_calls_do_not_allocate() {
         .iter()
         .map(|pr| vec![Impulse::ZERO; pr.points.len()])
         .collect();
-    let flags: Vec<Vec<bool>> = problems
+    let none: Vec<Vec<Option<Impulse>>> = problems
         .iter()
-        .map(|pr| vec![false; pr.points.len()])
+        .map(|pr| vec![None; pr.points.len()])
         .collect();
     let mut outs = carried.clone();
     let mut provider = GridFiltered::new(Box::new(Fixed), GridFilterConfig::default()).unwrap();
     let mut run = || {
         for (k, pr) in problems.iter().enumerate() {
-            let ctx = WarmStartContext::new(pr, &carried[k], &flags[k], 0, 0.01).with_world(
-                &world,
-                k,
-                problems.len(),
-            );
+            let ctx =
+                WarmStartContext::new(pr, &none[k], 0, 0.01).with_world(&world, k, problems.len());
             provider.warm_start(&ctx, &mut outs[k]).unwrap();
         }
     };

@@ -2,6 +2,8 @@
 
 use std::sync::OnceLock;
 
+use deepcontact_core::Velocity;
+
 use deepcontact_core::{
     CarriedWarmStart, ContactProblem, Impulse, SolveReport, SolverSettings, Vector, VelocitySolver,
     WarmStart, WarmStartContext, WarmStartError, World, WorldSettings, ZeroWarmStart, scene,
@@ -123,7 +125,7 @@ impl WarmStart for Oracle {
             tolerance: 1e-9,
             ..SolverSettings::default()
         };
-        let mut v = vec![(Vector::zeros(), 0.0); ctx.problem.bodies.len()];
+        let mut v = vec![Velocity::default(); ctx.problem.bodies.len()];
         out.fill(Impulse::ZERO);
         self.0
             .solve(
@@ -147,14 +149,16 @@ fn iterations(provider: &mut dyn WarmStart) -> u64 {
     let mut total = 0;
     for (k, problem) in problems.iter().enumerate() {
         let n = problem.points.len();
-        let carried = vec![Impulse::ZERO; n];
-        let persisted = vec![false; n];
-        let ctx = WarmStartContext::new(problem, &carried, &persisted, STEPS as u64, 0.01)
-            .with_world(world, k, problems.len());
+        let carried = vec![None; n];
+        let ctx = WarmStartContext::new(problem, &carried, STEPS as u64, 0.01).with_world(
+            world,
+            k,
+            problems.len(),
+        );
         let mut out = vec![Impulse::ZERO; n];
         provider.warm_start(&ctx, &mut out).unwrap();
         deepcontact_core::warm_start::check_output(&out, n).unwrap();
-        let mut v = vec![(Vector::zeros(), 0.0); problem.bodies.len()];
+        let mut v = vec![Velocity::default(); problem.bodies.len()];
         let mut report = SolveReport::default();
         solver
             .solve(
@@ -202,16 +206,14 @@ fn grid_provider_output_is_admissible_and_uses_the_box_grid() {
     .unwrap();
     for (k, problem) in world.last_problems().iter().enumerate() {
         let n = problem.points.len();
-        let carried = vec![Impulse::ZERO; n];
-        let persisted = vec![false; n];
-        let ctx =
-            WarmStartContext::new(problem, &carried, &persisted, 0, 0.01).with_world(world, k, 1);
+        let carried = vec![None; n];
+        let ctx = WarmStartContext::new(problem, &carried, 0, 0.01).with_world(world, k, 1);
         let mut out = vec![Impulse::ZERO; n];
         p.warm_start(&ctx, &mut out).unwrap();
         assert!(out.iter().all(|i| i.is_finite() && i.normal >= 0.0));
         assert_eq!(p.last_grid(), &GridSpec::thesis());
         // Without the world: a grid around the problem's own bodies and points.
-        let ctx = WarmStartContext::new(problem, &carried, &persisted, 0, 0.01);
+        let ctx = WarmStartContext::new(problem, &carried, 0, 0.01);
         p.warm_start(&ctx, &mut out).unwrap();
         assert!(out.iter().all(|i| i.is_finite() && i.normal >= 0.0));
         assert!(p.last_grid().len() <= GridSpec::thesis().len());

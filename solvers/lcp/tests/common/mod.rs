@@ -5,6 +5,8 @@
 use std::collections::HashMap;
 use std::sync::OnceLock;
 
+use deepcontact_core::Velocity;
+
 use deepcontact_core::math::{Real, Vector};
 use deepcontact_core::rng::PortableRng;
 use deepcontact_core::{
@@ -254,9 +256,9 @@ pub fn run(
     problem: &ContactProblem,
     settings: &SolverSettings,
     start: &[Impulse],
-) -> (Vec<Impulse>, Vec<(Vector, Real)>, SolveReport) {
+) -> (Vec<Impulse>, Vec<Velocity>, SolveReport) {
     let mut imp = start.to_vec();
-    let mut vel = vec![(Vector::zeros(), 0.0); problem.bodies.len()];
+    let mut vel = vec![Velocity::default(); problem.bodies.len()];
     let mut report = SolveReport::default();
     solver
         .solve(problem, settings, &mut imp, &mut vel, &mut report)
