@@ -100,7 +100,7 @@ pub fn seed_file(out: &Path, seed: u64) -> PathBuf {
 
 /// Builtin warm start that also records, at the first island of each step, the world as the
 /// providers see it, and the warm start of every point.
-struct Recorder {
+struct StepCapture {
     features: GridFeatures,
     error: Option<String>,
     /// Whether the current step has been snapshotted.
@@ -110,7 +110,7 @@ struct Recorder {
     warm: Vec<(ContactId, Impulse)>,
 }
 
-impl WarmStart for Recorder {
+impl WarmStart for StepCapture {
     fn name(&self) -> &str {
         "builtin"
     }
@@ -193,7 +193,7 @@ fn simulate_seed(
     };
     let features = GridFeatures::new(layout.clone()).map_err(|e| grid_err(&e))?;
     let mut labeler = GridFeatures::new(layout.clone()).map_err(|e| grid_err(&e))?;
-    let mut rec = Recorder {
+    let mut rec = StepCapture {
         features,
         error: None,
         snap: None,

@@ -3,5 +3,5 @@
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    deepcontact_fuzz::parse_specs(data);
+    deepcontact_fuzz_harness::parse_specs(data);
 });

@@ -3,5 +3,5 @@
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    deepcontact_fuzz::solve_problem(data);
+    deepcontact_fuzz_harness::solve_problem(data);
 });

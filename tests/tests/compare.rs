@@ -212,6 +212,58 @@ fn a_third_party_provider_is_compared_through_its_registry() {
 }
 
 #[test]
+fn a_learned_providers_state_is_read_back_through_the_comparison() {
+    use deepcontact_core::{Impulse, Observation, WarmStart, WarmStartContext, WarmStartError};
+    /// Counts the islands it observed: its "learned state".
+    struct Counting(f64);
+    impl WarmStart for Counting {
+        fn name(&self) -> &str {
+            "counting"
+        }
+        fn warm_start(
+            &mut self,
+            _: &WarmStartContext<'_>,
+            _: &mut [Impulse],
+        ) -> Result<(), WarmStartError> {
+            Ok(())
+        }
+        fn observe(&mut self, _: &WarmStartContext<'_>, _: &Observation<'_>) {
+            self.0 += 1.0;
+        }
+        fn diagnostics(&self) -> Vec<(String, f64)> {
+            vec![("islands_seen".into(), self.0)]
+        }
+    }
+    let mut registry = deepcontact_experiments::full_registry();
+    registry.register_provider("counting", "counts islands", |_, _| {
+        Ok(Box::new(Counting(0.0)))
+    });
+    let config = Config {
+        warm_starts: split_spec_list("none,counting").unwrap(),
+        seeds: vec![12345],
+        steps: 45,
+        progress: false,
+        ..Config::default()
+    };
+    let results = compare::run_experiment_with(&config, &registry).unwrap();
+    assert!(results.runs[0].diagnostics.is_empty());
+    let islands: usize = results.runs[1].steps.iter().map(|s| s.islands).sum();
+    assert_eq!(
+        results.runs[1].diagnostics,
+        [("islands_seen".to_string(), islands as f64)]
+    );
+    let dir = scratch_dir("diagnostics");
+    compare::write_outputs(&results, &dir, false).unwrap();
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(
+        json["diagnostics"][0]["values"]["islands_seen"],
+        islands as f64
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn bad_input_is_a_typed_error() {
     let err = |config: Config| {
         compare::run_experiment(&Config {

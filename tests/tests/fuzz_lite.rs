@@ -1,11 +1,8 @@
-//! "Fuzz-lite": the cargo-fuzz harnesses of `fuzz/` (included from `fuzz/src/lib.rs`) run on
+//! "Fuzz-lite": the cargo-fuzz harnesses (`deepcontact-fuzz-harness`, `fuzz/harness/`) run on
 //! stable under proptest, with random bytes and a few hand-written bad inputs, so that every
 //! `cargo test` exercises them. The real fuzzers are described in `fuzz/README.md`.
 
-#[path = "../../fuzz/src/lib.rs"]
-mod harness;
-
-use harness::{Bytes, parse_specs, problem_from, small_problem, solve_problem};
+use deepcontact_fuzz_harness::{Bytes, parse_specs, problem_from, small_problem, solve_problem};
 use proptest::prelude::*;
 
 proptest! {

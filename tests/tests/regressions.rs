@@ -1,18 +1,12 @@
 //! Regression tests of the bugs found by fuzzing and property testing (one test per bug,
-//! named after it). The harness is the fuzzers' own (`fuzz/src/lib.rs`).
-
-#[path = "../../fuzz/src/lib.rs"]
-#[allow(dead_code)]
-mod harness;
+//! named after it). The harness is the fuzzers' own (`deepcontact-fuzz-harness`, `fuzz/harness/`).
 
 use std::path::Path;
-
-use deepcontact_core::Velocity;
 
 use deepcontact_core::math::Real;
 use deepcontact_core::{
     ContactId, ContactProblem, Impulse, PointDesc, ProblemBody, SolveReport, SolverSettings,
-    Vector, VelocitySolver,
+    Vector, Velocity, VelocitySolver,
 };
 use deepcontact_pgs::PgsSolver;
 
@@ -90,7 +84,7 @@ fn regression_pgs_panicked_on_a_negative_normal_start() {
         57, 54, 50, 51, 55, 56, 49, 55, 49, 56, 244, 103, 254, 255, 255, 224, 255, 255, 0, 0, 152,
         152, 152, 152, 1, 0, 0, 0, 0, 0, 0, 31, 152, 152, 52, 152, 152, 152,
     ];
-    harness::solve_problem(CRASH);
+    deepcontact_fuzz_harness::solve_problem(CRASH);
 
     // The same bug on a hand-built problem: one ball resting on the ground.
     let mut p = ContactProblem::new();
@@ -158,7 +152,7 @@ fn regression_pgs_returned_ok_with_a_nan_impulse() {
         0, 31, 152, 152, 52, 152, 152, 152, 31, 0, 0, 152, 0, 4, 4, 4, 65, 4, 4, 0, 42, 0, 0, 0, 0,
         31, 152, 152, 52, 152, 152, 152,
     ];
-    harness::solve_problem(CRASH);
+    deepcontact_fuzz_harness::solve_problem(CRASH);
 }
 
 /// cargo-fuzz `solve_problem` (crash-07ff248e…): a sweep that overflowed to λn = ∞ gave the
@@ -173,5 +167,5 @@ fn regression_pgs_panicked_on_a_nan_friction_bound() {
         51, 4, 152, 1, 0, 0, 31, 0, 0, 152, 0, 4, 4, 4, 4, 65, 0, 42, 4, 0, 0, 0, 0, 31, 152, 152,
         52, 152, 152, 152,
     ];
-    harness::solve_problem(CRASH);
+    deepcontact_fuzz_harness::solve_problem(CRASH);
 }

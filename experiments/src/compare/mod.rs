@@ -214,6 +214,9 @@ pub struct Run {
     pub steps: Vec<StepRecord>,
     /// Per step, the ∞-norm residual of every iteration (empty for steps without contacts).
     pub curves: Vec<Vec<f64>>,
+    /// The provider's [`deepcontact_core::WarmStart::diagnostics`] after the last step (its
+    /// learned or adapted state; empty for most providers).
+    pub diagnostics: Vec<(String, f64)>,
 }
 
 /// Everything a comparison measured.

@@ -234,8 +234,19 @@ pub fn write_outputs(
     let rows = summarize(results);
     let curves = curves(results);
     let summary_md = summary_md(results, &rows);
+    // Providers' learned state after each world, where they report one.
+    let diagnostics: Vec<serde_json::Value> = results
+        .runs
+        .iter()
+        .filter(|r| !r.diagnostics.is_empty())
+        .map(|r| {
+            serde_json::json!({ "solver": &results.solvers[r.solver],
+                "warm_start": &results.warm_starts[r.warm_start], "seed": r.seed,
+                "values": r.diagnostics.iter().cloned().collect::<std::collections::BTreeMap<_, _>>() })
+        })
+        .collect();
     let json = serde_json::json!({ "config": &results.config, "threads": results.threads,
-        "wall_seconds": results.wall_seconds, "summary": &rows });
+        "wall_seconds": results.wall_seconds, "summary": &rows, "diagnostics": diagnostics });
     let json = serde_json::to_string_pretty(&json)
         .map_err(|e| ExperimentError::Invalid(format!("summary.json: {e}")))?;
     let mut files = Vec::new();

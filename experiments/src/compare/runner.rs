@@ -94,6 +94,7 @@ fn run_world(
         seed,
         steps: Vec::with_capacity(config.steps as usize),
         curves: Vec::with_capacity(config.steps as usize),
+        diagnostics: Vec::new(),
     };
     for _ in 0..config.steps {
         let report = world.step(&mut provider, &mut velocity, &mut position)?;
@@ -105,5 +106,6 @@ fn run_world(
         });
         bar.inc(1);
     }
+    run.diagnostics = provider.diagnostics();
     Ok(run)
 }

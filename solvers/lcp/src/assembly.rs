@@ -28,6 +28,7 @@
 
 use deepcontact_core::math::{Real, Vector, Velocity, cross};
 use deepcontact_core::{ContactProblem, Impulse};
+#[cfg(feature = "sparse")]
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 
@@ -428,12 +429,15 @@ impl Delassus {
         self.dense.then(|| self.w_dense.as_ref())
     }
 
-    /// The sparse `W` (compressed columns, symmetric) when the last assembly was sparse.
+    /// The sparse `W` (compressed columns, symmetric) when the last assembly was sparse
+    /// (feature `sparse`, on by default).
+    #[cfg(feature = "sparse")]
     pub fn sparse(&self) -> Option<SparseColMatRef<'_, usize, Real>> {
         (!self.dense).then(|| SparseColMatRef::new(self.sparse_symbolic(), &self.values))
     }
 
     /// Symbolic structure of the sparse `W` (call only when sparse).
+    #[cfg(feature = "sparse")]
     pub(crate) fn sparse_symbolic(&self) -> SymbolicSparseColMatRef<'_, usize> {
         SymbolicSparseColMatRef::new_checked(
             self.rows,

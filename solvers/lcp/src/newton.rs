@@ -6,11 +6,15 @@ use deepcontact_core::math::{Real, Velocity};
 use deepcontact_core::{
     ContactProblem, CoreError, Impulse, SolveReport, SolverSettings, VelocitySolver,
 };
+#[cfg(feature = "sparse")]
+use faer::Conj;
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::lu::partial_pivoting::{factor as dense_lu, solve as dense_solve};
+#[cfg(feature = "sparse")]
 use faer::sparse::SparseColMatRef;
+#[cfg(feature = "sparse")]
 use faer::sparse::linalg::lu::{NumericLu, SymbolicLu, factorize_symbolic_lu};
-use faer::{Conj, Mat, MatMut, Par};
+use faer::{Mat, MatMut, Par};
 
 use crate::LcpError;
 use crate::assembly::{
@@ -224,8 +228,11 @@ pub struct NewtonSolver {
     k_dense: Mat<Real>,
     perm: Vec<usize>,
     perm_inv: Vec<usize>,
+    #[cfg(feature = "sparse")]
     k_values: Vec<Real>,
+    #[cfg(feature = "sparse")]
     symbolic: Option<SymbolicLu<usize>>,
+    #[cfg(feature = "sparse")]
     numeric: NumericLu<usize, Real>,
     mem: Scratch,
     stats: NewtonStats,
@@ -264,8 +271,11 @@ impl NewtonSolver {
             k_dense: Mat::new(),
             perm: Vec::new(),
             perm_inv: Vec::new(),
+            #[cfg(feature = "sparse")]
             k_values: Vec::new(),
+            #[cfg(feature = "sparse")]
             symbolic: None,
+            #[cfg(feature = "sparse")]
             numeric: NumericLu::new(),
             mem: Scratch(MemBuffer::new(StackReq::EMPTY)),
             stats: NewtonStats::default(),
@@ -438,7 +448,10 @@ impl NewtonSolver {
         self.state.clear();
         self.state.resize(n, RowState::Free);
         let req = if self.delassus.is_dense() {
-            self.symbolic = None;
+            #[cfg(feature = "sparse")]
+            {
+                self.symbolic = None;
+            }
             self.k_dense.resize_with(n, n, |_, _| 0.0);
             self.perm.resize(n, 0);
             self.perm_inv.resize(n, 0);
@@ -446,25 +459,41 @@ impl NewtonSolver {
                 dense_solve::solve_in_place_scratch::<usize, Real>(n, 1, Par::Seq),
             )
         } else {
-            let symbolic =
-                factorize_symbolic_lu(self.delassus.sparse_symbolic(), Default::default())
-                    .map_err(|e| LcpError::Factorization {
-                        rows: n,
-                        reason: format!("{e:?}"),
-                    })?;
-            let req = symbolic
-                .factorize_numeric_lu_scratch::<Real>(Par::Seq, Default::default())
-                .or(symbolic.solve_in_place_scratch::<Real>(1, Par::Seq));
-            self.symbolic = Some(symbolic);
-            // faer 0.24's simplicial LU keeps the column pointers of a larger previous
-            // matrix and then fails an assertion in the solve: start from fresh numeric
-            // storage for every new pattern (it is reused across the iterations of a solve).
-            self.numeric = NumericLu::new();
-            self.k_values.clear();
-            self.k_values.resize(self.delassus.nnz(), 0.0);
-            req
+            self.prepare_sparse(n)?
         };
         self.mem.reserve(req)
+    }
+
+    /// The sparse symbolic analysis of `W`'s pattern and the scratch it needs.
+    #[cfg(feature = "sparse")]
+    fn prepare_sparse(&mut self, n: usize) -> Result<StackReq, LcpError> {
+        let symbolic = factorize_symbolic_lu(self.delassus.sparse_symbolic(), Default::default())
+            .map_err(|e| LcpError::Factorization {
+            rows: n,
+            reason: format!("{e:?}"),
+        })?;
+        let req = symbolic
+            .factorize_numeric_lu_scratch::<Real>(Par::Seq, Default::default())
+            .or(symbolic.solve_in_place_scratch::<Real>(1, Par::Seq));
+        self.symbolic = Some(symbolic);
+        // faer 0.24's simplicial LU keeps the column pointers of a larger previous
+        // matrix and then fails an assertion in the solve: start from fresh numeric
+        // storage for every new pattern (it is reused across the iterations of a solve).
+        self.numeric = NumericLu::new();
+        self.k_values.clear();
+        self.k_values.resize(self.delassus.nnz(), 0.0);
+        Ok(req)
+    }
+
+    /// Without the `sparse` feature a sparse-assembled system cannot be factorised.
+    #[cfg(not(feature = "sparse"))]
+    fn prepare_sparse(&mut self, n: usize) -> Result<StackReq, LcpError> {
+        Err(LcpError::Factorization {
+            rows: n,
+            reason: "sparse LU needs the `sparse` feature of deepcontact-lcp (on by default); \
+                     use assembly=dense"
+                .into(),
+        })
     }
 
     /// Classifies the rows at the current iterate, fills `h = H(x)` and the Newton
@@ -603,7 +632,15 @@ impl NewtonSolver {
         true
     }
 
+    /// Without the `sparse` feature there is no sparse factorisation (never reached: `prepare`
+    /// refuses sparse systems).
+    #[cfg(not(feature = "sparse"))]
+    fn solve_sparse(&mut self, _reg: Real, _scale: Real) -> bool {
+        false
+    }
+
     /// Sparse LU of `K` (faer, same pattern as `W`; symbolic analysis done in `prepare`).
+    #[cfg(feature = "sparse")]
     fn solve_sparse(&mut self, reg: Real, scale: Real) -> bool {
         let n = self.delassus.rows();
         let Some(w) = self.delassus.sparse() else {

@@ -1,6 +1,6 @@
-//! Fuzz harnesses of deepcontact, shared by the cargo-fuzz targets in `fuzz_targets/` and by
-//! the stable "fuzz-lite" test `tests/tests/fuzz_lite.rs` (which includes this file with
-//! `#[path]`). Each harness turns arbitrary bytes into input of a public API and panics only
+//! Fuzz harnesses of deepcontact, shared by the cargo-fuzz targets in `fuzz/fuzz_targets/` and
+//! by the stable "fuzz-lite" test `tests/tests/fuzz_lite.rs` (a dev-dependency of the tests
+//! crate). Each harness turns arbitrary bytes into input of a public API and panics only
 //! when that API breaks its contract (a panic, or an `Ok` with a non-finite or inadmissible
 //! result).
 
