@@ -191,6 +191,35 @@ fn cases(dir: &Path) -> Vec<Case> {
             "blocked",
         ),
         case(
+            "a hundred million bodies (above the ceiling, refused at once)",
+            &["simulate", "--bodies", "100000000", "--steps", "1"],
+            "1 000 000",
+        ),
+        case(
+            "a comparison too large for memory",
+            &[
+                "compare",
+                "--steps",
+                "100000000",
+                "--out",
+                &out,
+                "--no-plots",
+            ],
+            "GiB",
+        ),
+        case(
+            "a million threads",
+            &[
+                "compare",
+                "--threads",
+                "1000000",
+                "--out",
+                &out,
+                "--no-plots",
+            ],
+            "threads",
+        ),
+        case(
             "bad shard",
             &["generate", "--shard", "4/4", "--out", &out, "--quiet"],
             "4/4",

@@ -93,6 +93,13 @@ pub fn walls(side: Real, material: Material) -> Vec<BodyDesc> {
 /// `params.bodies != 100` the box and the spread are scaled by `sqrt(bodies / 100)` so
 /// the density is kept. The walls are bodies 0-3, the circles follow.
 pub fn pile_with(seed: u64, params: &PileParams) -> Result<Scene, CoreError> {
+    if params.bodies > MAX_BODIES {
+        return Err(CoreError::InvalidSetting {
+            name: "pile.bodies",
+            value: params.bodies as Real,
+            reason: "is above the ceiling of 1 000 000 bodies (MAX_BODIES)",
+        });
+    }
     if params.bodies == 0 {
         // The box is scaled by sqrt(bodies / 100): an empty pile has no box.
         return Err(CoreError::InvalidSetting {
@@ -290,10 +297,26 @@ fn ground(width: Real) -> BodyDesc {
 /// Names accepted by [`by_name`].
 pub const SCENES: &[&str] = &["pile", "pyramid", "stack", "resting_ball"];
 
+/// The most circles a pile may have: placement, memory (≈ 1 KB per body with its broad-phase
+/// and solver data) and step time (≈ 25 ms per step at 10 000 bodies) grow with it, so a
+/// larger request is refused at once instead of running for minutes.
+pub const MAX_BODIES: usize = 1_000_000;
+
+/// The largest base of a pyramid or height of a stack (a pyramid of 1 000 holds 500 500 boxes).
+pub const MAX_STACK: usize = 1_000;
+
 /// A scene by name: `pile` (uses `seed` and `bodies`), `pyramid` (base of `bodies` boxes,
 /// 10 if `bodies` is 100), `stack` (of `bodies` boxes, 10 if 100), `resting_ball`.
 pub fn by_name(name: &str, seed: u64, bodies: usize) -> Result<Scene, CoreError> {
     let small = if bodies == 100 { 10 } else { bodies };
+    // A pyramid of base b holds b (b + 1) / 2 boxes, a stack b: both bounded like the pile.
+    if name != "pile" && name != "resting_ball" && small > MAX_STACK {
+        return Err(CoreError::InvalidSetting {
+            name: "bodies",
+            value: small as Real,
+            reason: "is above the ceiling of 1 000 for pyramid and stack (MAX_STACK)",
+        });
+    }
     match name {
         "pile" => pile(seed, bodies),
         "pyramid" => Ok(pyramid(small)),

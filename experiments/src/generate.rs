@@ -458,9 +458,19 @@ pub fn run_generate(
     registry: &Registry,
 ) -> Result<GenerateOutcome, ExperimentError> {
     std::fs::create_dir_all(&config.out).map_err(|e| ExperimentError::io(&config.out, e))?;
-    // Fail early on a bad solver spec or settings.
+    // Fail early on a bad solver spec, settings or a plan that cannot fit in memory (each
+    // worker holds one seed's grids, inputs and labels, until its file is written).
     registry.build_solver(&config.solver)?;
     config.world.validate()?;
+    crate::limits::check_threads(config.threads)?;
+    let layout = GridLayout::thesis();
+    let per_step = 4 * (layout.input_len() + layout.output_len()) as u128;
+    let workers = crate::threads(config.threads).min(config.seeds.len().max(1)) as u128;
+    crate::limits::check_memory(
+        "generate",
+        workers * u128::from(config.steps) * per_step,
+        "lower --steps or --jobs",
+    )?;
     let todo: Vec<u64> = config
         .seeds
         .iter()
@@ -470,7 +480,6 @@ pub fn run_generate(
         })
         .collect();
     let skipped = config.seeds.len() - todo.len();
-    let layout = GridLayout::thesis();
     let bar = if config.progress {
         ProgressBar::new(todo.len() as u64 * config.steps)
     } else {

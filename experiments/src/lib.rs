@@ -43,6 +43,7 @@ pub mod compare;
 mod error;
 #[cfg(feature = "onnx")]
 pub mod generate;
+pub mod limits;
 pub mod plots;
 mod registry;
 pub mod render;

@@ -191,6 +191,7 @@ pub fn run_soak(
             config.steps, config.settle
         )));
     }
+    crate::limits::check_threads(config.threads)?;
     let threads = crate::threads(config.threads);
     let pool = crate::pool(threads)?;
     let runs: Vec<Result<SoakRun, ExperimentError>> = pool.install(|| {

@@ -143,6 +143,16 @@ impl Config {
             return usage("a seed is listed twice");
         }
         self.world.validate()?;
+        crate::limits::check_threads(self.threads)?;
+        // Per step a record and, in the worst case, a residual for every iteration up to the cap.
+        let runs = (self.solvers.len() * self.warm_starts.len() * self.seeds.len()) as u128;
+        let per_step = std::mem::size_of::<StepRecord>() as u128
+            + 8 * u128::from(self.world.solver.max_iterations);
+        crate::limits::check_memory(
+            "this comparison",
+            runs * u128::from(self.steps) * per_step,
+            "lower --steps, the seeds, the providers or --max-iterations",
+        )?;
         Ok(())
     }
 }
