@@ -34,6 +34,9 @@ pub enum NormArg {
     Inf,
     /// sqrt(Σ Δλ²) over the rows.
     L2,
+    /// The original thesis code's rule: per contact sqrt(Δλn² + max(0, Δλt)²), largest over
+    /// the contacts, ≤ tolerance (pgs only).
+    Contact,
 }
 
 /// Velocity-solver stop rule options shared by `simulate`, `compare` and `generate`.
@@ -71,6 +74,7 @@ impl SolverArgs {
                 norm: match self.norm {
                     NormArg::Inf => ResidualNorm::Infinity,
                     NormArg::L2 => ResidualNorm::L2,
+                    NormArg::Contact => ResidualNorm::Contact,
                 },
                 min_iterations: 1,
             },

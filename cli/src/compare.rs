@@ -29,6 +29,10 @@ pub struct CompareArgs {
     /// Circles in the pile (the box grows to keep the density).
     #[arg(long, default_value_t = 100)]
     pub bodies: usize,
+    /// Scene of every world: `pile`, or `thesis` (the original code's exact initial worlds,
+    /// seeds 12345–12354).
+    #[arg(long, default_value = "pile")]
+    pub scene: String,
     /// Velocity solver and stop rule (`--solver` is replaced by `--solvers` when given).
     #[command(flatten)]
     pub solver: SolverArgs,
@@ -62,6 +66,7 @@ impl CompareArgs {
             seeds: parse_seeds(&self.seeds)?,
             steps: self.steps,
             bodies: self.bodies,
+            scene: self.scene.clone(),
             world: self.solver.world_settings(),
             threads: self.threads.unwrap_or(0),
             progress: !self.quiet,

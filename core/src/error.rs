@@ -53,6 +53,18 @@ pub enum CoreError {
         /// The step about to run.
         step: u64,
     },
+    /// A scene file that cannot be read: the line (1-based), the field and why.
+    #[error("scene file {file}, line {line}, field {field}: {reason}")]
+    SceneFile {
+        /// The file (or `"<embedded>"` for the data compiled in).
+        file: String,
+        /// Line number, 1-based (0 for the file as a whole).
+        line: usize,
+        /// Column name.
+        field: String,
+        /// What is wrong.
+        reason: String,
+    },
     /// A handle that does not name a body of this world.
     #[error("unknown body handle {0}")]
     UnknownBody(usize),

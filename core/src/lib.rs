@@ -26,6 +26,7 @@ pub mod registry;
 pub mod report;
 pub mod rng;
 pub mod scene;
+pub mod scene_file;
 pub mod shape;
 pub mod solver;
 pub mod warm_start;

@@ -295,7 +295,7 @@ fn ground(width: Real) -> BodyDesc {
 }
 
 /// Names accepted by [`by_name`].
-pub const SCENES: &[&str] = &["pile", "pyramid", "stack", "resting_ball"];
+pub const SCENES: &[&str] = &["pile", "pyramid", "stack", "resting_ball", "thesis"];
 
 /// The most circles a pile may have: placement, memory (≈ 1 KB per body with its broad-phase
 /// and solver data) and step time (≈ 25 ms per step at 10 000 bodies) grow with it, so a
@@ -310,7 +310,7 @@ pub const MAX_STACK: usize = 1_000;
 pub fn by_name(name: &str, seed: u64, bodies: usize) -> Result<Scene, CoreError> {
     let small = if bodies == 100 { 10 } else { bodies };
     // A pyramid of base b holds b (b + 1) / 2 boxes, a stack b: both bounded like the pile.
-    if name != "pile" && name != "resting_ball" && small > MAX_STACK {
+    if (name == "pyramid" || name == "stack") && small > MAX_STACK {
         return Err(CoreError::InvalidSetting {
             name: "bodies",
             value: small as Real,
@@ -322,6 +322,7 @@ pub fn by_name(name: &str, seed: u64, bodies: usize) -> Result<Scene, CoreError>
         "pyramid" => Ok(pyramid(small)),
         "stack" => Ok(stack(small)),
         "resting_ball" => Ok(resting_ball()),
+        "thesis" => crate::scene_file::thesis_world(seed),
         _ => Err(CoreError::UnknownScene {
             name: name.to_string(),
             known: SCENES.join(", "),

@@ -16,6 +16,11 @@ pub enum ResidualNorm {
     /// which takes per contact `sqrt(Δλn² + max(0, Δλt)²)` (signed, decreasing friction
     /// changes ignored) and stops on the largest of those over the contacts.
     L2,
+    /// The original thesis code's rule (modified Box2D 2.3.2, `b2ContactSolver.cpp`): per
+    /// contact `sqrt(Δλn² + max(0, Δλt)²)` — signed, so decreasing friction changes are
+    /// ignored, and `Δλn` only for one-point manifolds — the largest over the contacts, and the
+    /// solve stops when it is `≤` the tolerance (not `<`). Supported by `pgs`.
+    Contact,
 }
 
 /// Stop rule of a velocity solve.
@@ -70,14 +75,36 @@ impl SolverSettings {
         Ok(())
     }
 
-    /// Whether a solve that has run `iteration` iterations (1-based) with these residuals may stop.
+    /// Whether a solve that has run `iteration` iterations (1-based) with these residuals may
+    /// stop; `residual_contact` is the [`ResidualNorm::Contact`] measure (solvers that do not
+    /// compute it refuse that norm and pass anything).
     #[inline]
-    pub fn converged(&self, iteration: u32, residual_inf: Real, residual_l2: Real) -> bool {
-        let r = match self.norm {
-            ResidualNorm::Infinity => residual_inf,
-            ResidualNorm::L2 => residual_l2,
-        };
-        iteration >= self.min_iterations && r < self.tolerance
+    pub fn converged(
+        &self,
+        iteration: u32,
+        residual_inf: Real,
+        residual_l2: Real,
+        residual_contact: Real,
+    ) -> bool {
+        iteration >= self.min_iterations
+            && match self.norm {
+                ResidualNorm::Infinity => residual_inf < self.tolerance,
+                ResidualNorm::L2 => residual_l2 < self.tolerance,
+                ResidualNorm::Contact => residual_contact <= self.tolerance,
+            }
+    }
+
+    /// The error of a solver that does not compute the [`ResidualNorm::Contact`] measure.
+    pub fn require_norm_supported(&self, solver: &str) -> Result<(), CoreError> {
+        if self.norm == ResidualNorm::Contact {
+            return Err(CoreError::Solver {
+                solver: solver.to_string(),
+                reason: "the contact stop rule (norm contact, the thesis code's) is supported by \
+                         pgs only"
+                    .into(),
+            });
+        }
+        Ok(())
     }
 }
 

@@ -55,6 +55,20 @@ pub mod soak;
 pub use error::ExperimentError;
 pub use registry::full_registry;
 
+/// Serialises `rows` as CSV (a header line from the field names, then one line per row) with
+/// the `csv` crate; `None` fields are empty.
+pub fn csv_bytes<T: serde::Serialize>(
+    rows: impl IntoIterator<Item = T>,
+) -> Result<Vec<u8>, ExperimentError> {
+    let mut w = csv::Writer::from_writer(Vec::new());
+    for row in rows {
+        w.serialize(row)
+            .map_err(|e| ExperimentError::Invalid(format!("csv: {e}")))?;
+    }
+    w.into_inner()
+        .map_err(|e| ExperimentError::Invalid(format!("csv: {e}")))
+}
+
 /// `requested` worker threads, or one per core for 0.
 pub fn threads(requested: usize) -> usize {
     if requested == 0 {

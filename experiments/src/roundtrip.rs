@@ -126,28 +126,36 @@ pub fn table(config: &RoundtripConfig) -> Result<Vec<Row>, ExperimentError> {
     Ok(rows)
 }
 
-/// The table as CSV (one row per pair, thesis values alongside).
-pub fn csv(rows: &[Row]) -> String {
-    let mut s = String::from(
-        "res,h,body_mean_abs_diff,contact_mean_abs_diff,bodies,contacts,lost_bodies,lost_contacts,thesis_body,thesis_contact\n",
-    );
-    for r in rows {
-        let (tb, tc) = r.thesis.map_or((String::new(), String::new()), |(b, c)| {
-            (b.to_string(), c.to_string())
-        });
-        s.push_str(&format!(
-            "{},{},{:.6e},{:.6e},{},{},{},{},{tb},{tc}\n",
-            r.res,
-            r.h,
-            r.sums.body_mean(),
-            r.sums.contact_mean(),
-            r.sums.bodies,
-            r.sums.contacts,
-            r.sums.lost_bodies,
-            r.sums.lost_contacts
-        ));
-    }
-    s
+#[derive(serde::Serialize)]
+struct CsvRow {
+    res: f64,
+    h: f64,
+    body_mean_abs_diff: f64,
+    contact_mean_abs_diff: f64,
+    bodies: usize,
+    contacts: usize,
+    lost_bodies: usize,
+    lost_contacts: usize,
+    thesis_body: Option<f64>,
+    thesis_contact: Option<f64>,
+}
+
+/// The table as CSV (one row per pair, thesis values alongside; empty where the thesis has
+/// none), written with the `csv` crate.
+pub fn csv(rows: &[Row]) -> Result<String, ExperimentError> {
+    let bytes = crate::csv_bytes(rows.iter().map(|r| CsvRow {
+        res: r.res,
+        h: r.h,
+        body_mean_abs_diff: r.sums.body_mean(),
+        contact_mean_abs_diff: r.sums.contact_mean(),
+        bodies: r.sums.bodies,
+        contacts: r.sums.contacts,
+        lost_bodies: r.sums.lost_bodies,
+        lost_contacts: r.sums.lost_contacts,
+        thesis_body: r.thesis.map(|t| t.0),
+        thesis_contact: r.thesis.map(|t| t.1),
+    }))?;
+    String::from_utf8(bytes).map_err(|e| ExperimentError::Invalid(format!("csv: {e}")))
 }
 
 /// The table as markdown, with the setup.
@@ -196,7 +204,7 @@ pub fn write_roundtrip(
     std::fs::create_dir_all(dir).map_err(|e| ExperimentError::io(dir, e))?;
     let csv_path = dir.join("grid_roundtrip.csv");
     let md_path = dir.join("grid_roundtrip.md");
-    write_atomic(&csv_path, csv(rows).as_bytes())?;
+    write_atomic(&csv_path, csv(rows)?.as_bytes())?;
     write_atomic(&md_path, markdown(rows, config).as_bytes())?;
     Ok([csv_path, md_path])
 }
@@ -220,7 +228,7 @@ mod tests {
         assert!(get(0.25, 0.25).sums.body_mean() < 1e-4);
         assert!(get(0.5, 0.125).sums.body_mean() > get(0.25, 0.125).sums.body_mean());
         assert!(rows.iter().all(|r| r.thesis.is_some()));
-        let csv = csv(&rows);
+        let csv = csv(&rows).unwrap();
         assert_eq!(csv.lines().count(), 10);
         assert!(markdown(&rows, &config).contains("| 0.25 | 0.5 |"));
         let bad = RoundtripConfig {

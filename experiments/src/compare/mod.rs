@@ -61,6 +61,9 @@ pub struct Config {
     pub steps: u64,
     /// Circles in the pile (default 100).
     pub bodies: usize,
+    /// Scene of every world, see [`deepcontact_core::scene::by_name`] (default `pile`;
+    /// `thesis` starts from the original code's exact initial positions, seeds 12345–12354).
+    pub scene: String,
     /// World settings (default: the thesis's, cap 1000, tolerance 1e-4, ∞-norm).
     #[serde(skip)]
     pub world: WorldSettings,
@@ -86,6 +89,7 @@ impl Default for Config {
             seeds: (12345..12355).collect(),
             steps: 250,
             bodies: 100,
+            scene: "pile".into(),
             world: WorldSettings::default(),
             threads: 0,
             progress: true,

@@ -31,17 +31,6 @@ fn opt(v: Option<f64>, digits: usize) -> String {
     v.map_or_else(String::new, |x| format!("{x:.digits$}"))
 }
 
-/// Serialises `rows` as CSV with a header line.
-fn to_csv<T: Serialize>(rows: impl IntoIterator<Item = T>) -> Result<Vec<u8>, ExperimentError> {
-    let mut w = csv::Writer::from_writer(Vec::new());
-    for row in rows {
-        w.serialize(row)
-            .map_err(|e| ExperimentError::Invalid(format!("csv: {e}")))?;
-    }
-    w.into_inner()
-        .map_err(|e| ExperimentError::Invalid(format!("csv: {e}")))
-}
-
 #[derive(Serialize)]
 struct StepRow<'a> {
     solver: &'a str,
@@ -65,7 +54,7 @@ struct StepRow<'a> {
 
 /// `steps.csv`: one row per solver, warm start, seed and step (columns [`STEPS_COLUMNS`]).
 pub fn steps_csv(results: &Results) -> Result<Vec<u8>, ExperimentError> {
-    to_csv(results.runs.iter().flat_map(|run| {
+    crate::csv_bytes(results.runs.iter().flat_map(|run| {
         run.steps.iter().map(move |r| StepRow {
             solver: &results.solvers[run.solver],
             warm_start: &results.warm_starts[run.warm_start],
@@ -101,7 +90,7 @@ struct CurveRow<'a> {
 /// `curves.csv`: per solver, warm start and iteration (1-based), the median ∞-norm residual
 /// and the steps still iterating (columns [`CURVES_COLUMNS`]).
 pub fn curves_csv(curves: &[Curve]) -> Result<Vec<u8>, ExperimentError> {
-    to_csv(curves.iter().flat_map(|c| {
+    crate::csv_bytes(curves.iter().flat_map(|c| {
         c.median_residual
             .iter()
             .zip(&c.iterators_left)
@@ -120,7 +109,7 @@ pub fn curves_csv(curves: &[Curve]) -> Result<Vec<u8>, ExperimentError> {
 /// `summary.csv`: one row per solver and warm start (columns [`SUMMARY_COLUMNS`]; an empty
 /// speedup where the reference provider was not run).
 pub fn summary_csv(rows: &[Summary]) -> Result<Vec<u8>, ExperimentError> {
-    to_csv(rows)
+    crate::csv_bytes(rows)
 }
 
 /// `summary.md`: the summary as a Markdown table with a few lines on how it was measured.

@@ -31,7 +31,7 @@ pub fn run_experiment_with(
         registry.solver_from_spec(s)?;
     }
     for &seed in &config.seeds {
-        scene::pile(seed, config.bodies)?;
+        scene::by_name(&config.scene, seed, config.bodies)?;
     }
 
     let jobs: Vec<(usize, usize, u64)> = (0..config.solvers.len())
@@ -84,7 +84,7 @@ fn run_world(
     seed: u64,
     bar: &ProgressBar,
 ) -> Result<Run, ExperimentError> {
-    let mut world = scene::pile(seed, config.bodies)?.build(config.world)?;
+    let mut world = scene::by_name(&config.scene, seed, config.bodies)?.build(config.world)?;
     let mut provider = registry.provider_from_spec(&config.warm_starts[warm_start])?;
     let mut velocity = registry.solver_from_spec(&config.solvers[solver])?;
     let mut position = PgsPositionSolver::new();

@@ -311,14 +311,12 @@ pub fn small_problem() -> ContactProblem {
 
 /// Whether a spec asks for more work than a fuzz iteration should do (a huge iteration cap
 /// with a zero tolerance is a legitimate request, just a slow one).
-/// The solvers and baseline providers, each registered by its own crate (the CNN providers
-/// load model files, too slow to build once per fuzz input).
+/// The full registry of the project ([`deepcontact_experiments::full_registry`]) as this
+/// harness builds it: without the `onnx` feature of deepcontact-experiments here, so the CNN
+/// providers (which load model files, too slow once per fuzz input) are absent; every solver,
+/// the baselines and `grid` are in.
 pub fn registry() -> Registry {
-    let mut registry = Registry::empty();
-    deepcontact_pgs::register(&mut registry);
-    deepcontact_lcp::register(&mut registry);
-    deepcontact_warmstart::register(&mut registry);
-    registry
+    deepcontact_experiments::full_registry()
 }
 
 fn too_slow(spec: &Spec) -> bool {

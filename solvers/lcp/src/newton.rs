@@ -304,6 +304,7 @@ impl NewtonSolver {
     ) -> Result<(), LcpError> {
         let t0 = Instant::now();
         self.settings.validate()?;
+        settings.require_norm_supported(self.name())?;
         begin_solve(
             problem,
             settings,
@@ -413,7 +414,9 @@ impl NewtonSolver {
             // A Newton iteration can make a tiny change without being converged (a short
             // line-search step): the natural map must be small too.
             let (h_inf, h_l2) = self.natural_norms();
-            if settings.converged(it, max_d, l2) && settings.converged(it, h_inf, h_l2) {
+            if settings.converged(it, max_d, l2, Real::INFINITY)
+                && settings.converged(it, h_inf, h_l2, Real::INFINITY)
+            {
                 report.converged = true;
                 break;
             }

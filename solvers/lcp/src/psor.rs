@@ -103,6 +103,7 @@ impl PsorSolver {
     ) -> Result<(), LcpError> {
         let t0 = Instant::now();
         self.settings.validate()?;
+        settings.require_norm_supported(self.name())?;
         begin_solve(
             problem,
             settings,
@@ -138,7 +139,7 @@ impl PsorSolver {
                     iteration: it,
                 });
             }
-            if settings.converged(it, max_d, l2) {
+            if settings.converged(it, max_d, l2, Real::INFINITY) {
                 report.converged = true;
                 break;
             }

@@ -409,31 +409,30 @@ impl PgsSolver {
         }
     }
 
-    /// Stage 3, one Gauss-Seidel sweep. Returns `(max |Δλ|, Σ Δλ²)`.
-    fn iterate(&mut self) -> (Real, Real) {
-        let mut max_d: Real = 0.0;
-        let mut sum_sq: Real = 0.0;
+    /// Stage 3, one Gauss-Seidel sweep. Returns its impulse changes' measures.
+    fn iterate(&mut self) -> Sweep {
+        let mut acc = Sweep::default();
         if self.segments.is_empty() {
             for m in &self.manifolds {
-                sweep_manifold(m, &mut self.rows, &mut self.vel, &mut max_d, &mut sum_sq);
+                sweep_manifold(m, &mut self.rows, &mut self.vel, &mut acc);
             }
-            return (max_d, sum_sq);
+            return acc;
         }
-        let mut lane_max = [0.0; LANES];
-        let mut lane_sum = [0.0; LANES];
+        let mut lanes = [Sweep::default(); LANES];
         for seg in &self.segments {
             for batch in &mut self.batches[seg.batches.clone()] {
-                sweep_batch(batch, &mut self.vel, &mut lane_max, &mut lane_sum);
+                sweep_batch(batch, &mut self.vel, &mut lanes);
             }
             for m in &self.scratch[seg.manifolds.clone()] {
-                sweep_manifold(m, &mut self.rows, &mut self.vel, &mut max_d, &mut sum_sq);
+                sweep_manifold(m, &mut self.rows, &mut self.vel, &mut acc);
             }
         }
-        for lane in 0..LANES {
-            max_d = max_d.max(lane_max[lane]);
-            sum_sq += lane_sum[lane];
+        for lane in &lanes {
+            acc.max = acc.max.max(lane.max);
+            acc.sum_sq += lane.sum_sq;
+            acc.contact_sq = acc.contact_sq.max(lane.contact_sq);
         }
-        (max_d, sum_sq)
+        acc
     }
 
     /// Friction rows were clamped against the normal impulse of the previous sweep; a
@@ -500,31 +499,41 @@ fn non_negative(x: Real) -> Real {
     if x < 0.0 { 0.0 } else { x }
 }
 
+/// The measures of one sweep's impulse changes.
+#[derive(Debug, Clone, Copy, Default)]
+struct Sweep {
+    /// `max |Δλ|` over the rows.
+    max: Real,
+    /// `Σ Δλ²` over the rows.
+    sum_sq: Real,
+    /// The largest per-manifold `Δλn² + max(0, Δλt)²` (`Δλn` of one-point manifolds only),
+    /// the square of [`ResidualNorm::Contact`](deepcontact_core::ResidualNorm::Contact).
+    contact_sq: Real,
+}
+
 /// One manifold's rows: friction first (bounded by the current normal impulse), then the
 /// normal rows (block solver for a 2-point manifold with a well-conditioned `K`).
 #[inline(always)]
-fn sweep_manifold(
-    m: &Manifold,
-    rows: &mut [Row],
-    vel: &mut [Vel],
-    max_d: &mut Real,
-    sum_sq: &mut Real,
-) {
+fn sweep_manifold(m: &Manifold, rows: &mut [Row], vel: &mut [Vel], acc: &mut Sweep) {
     let rows = &mut rows[m.start as usize..(m.start + m.count) as usize];
     let (mut va, mut vb) = (vel[m.a as usize], vel[m.b as usize]);
+    // The original's per-contact measure: the largest signed friction change (from 0), and
+    // the normal change of a one-point manifold.
+    let (mut t_pos, mut n_one): (Real, Real) = (0.0, 0.0);
     for r in rows.iter_mut() {
         let vt = tangent_velocity(r, &va, &vb);
         let new = clamp_sym(r.lt - r.tangent_mass * vt, r.friction * r.ln);
         let d = new - r.lt;
         r.lt = new;
         apply_tangent(m, r, &mut va, &mut vb, d);
-        *max_d = max_d.max(d.abs());
-        *sum_sq += d * d;
+        acc.max = acc.max.max(d.abs());
+        acc.sum_sq += d * d;
+        t_pos = t_pos.max(d);
     }
     if let Some(k) = &m.block {
         let (d1, d2) = solve_block(m, rows, k, &mut va, &mut vb);
-        *max_d = max_d.max(d1.abs()).max(d2.abs());
-        *sum_sq += d1 * d1 + d2 * d2;
+        acc.max = acc.max.max(d1.abs()).max(d2.abs());
+        acc.sum_sq += d1 * d1 + d2 * d2;
     } else {
         for r in rows.iter_mut() {
             let vn = normal_velocity(r, &va, &vb);
@@ -532,10 +541,15 @@ fn sweep_manifold(
             let d = new - r.ln;
             r.ln = new;
             apply_normal(m, r, &mut va, &mut vb, d);
-            *max_d = max_d.max(d.abs());
-            *sum_sq += d * d;
+            acc.max = acc.max.max(d.abs());
+            acc.sum_sq += d * d;
+            n_one = d;
+        }
+        if m.count != 1 {
+            n_one = 0.0;
         }
     }
+    acc.contact_sq = acc.contact_sq.max(n_one * n_one + t_pos * t_pos);
     store(vel, m, va, vb);
 }
 
@@ -545,12 +559,8 @@ fn sweep_manifold(
 /// bodies back. The lanes' bodies are distinct (one colour), except immovable ones, which
 /// are read but never written.
 #[inline(always)]
-fn sweep_batch(
-    b: &mut Batch,
-    vel: &mut [Vel],
-    lane_max: &mut [Real; LANES],
-    lane_sum: &mut [Real; LANES],
-) {
+fn sweep_batch(b: &mut Batch, vel: &mut [Vel], lanes: &mut [Sweep; LANES]) {
+    let mut t_pos = [0.0; LANES];
     let (mut avx, mut avy, mut aw) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
     let (mut bvx, mut bvy, mut bw) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
     for i in 0..LANES {
@@ -572,8 +582,9 @@ fn sweep_batch(
         bvx[i] += b.mb[i] * px;
         bvy[i] += b.mb[i] * py;
         bw[i] += b.ib[i] * (d * b.rtb[i]);
-        lane_max[i] = lane_max[i].max(d.abs());
-        lane_sum[i] += d * d;
+        lanes[i].max = lanes[i].max.max(d.abs());
+        lanes[i].sum_sq += d * d;
+        t_pos[i] = d.max(0.0);
     }
     // Normal rows: `normal_velocity`, projection, then `apply_normal`.
     for i in 0..LANES {
@@ -589,8 +600,9 @@ fn sweep_batch(
         bvx[i] += b.mb[i] * px;
         bvy[i] += b.mb[i] * py;
         bw[i] += b.ib[i] * (d * b.rnb[i]);
-        lane_max[i] = lane_max[i].max(d.abs());
-        lane_sum[i] += d * d;
+        lanes[i].max = lanes[i].max.max(d.abs());
+        lanes[i].sum_sq += d * d;
+        lanes[i].contact_sq = lanes[i].contact_sq.max(d * d + t_pos[i] * t_pos[i]);
     }
     for i in 0..LANES {
         if movable(b.ma[i], b.ia[i]) {
@@ -757,9 +769,9 @@ impl VelocitySolver for PgsSolver {
             .reserve(settings.max_iterations.min(4096) as usize);
         let mut it = 0;
         while it < settings.max_iterations {
-            let (max_d, sum_sq) = self.iterate();
+            let sweep = self.iterate();
+            let (max_d, l2) = (sweep.max, sweep.sum_sq.sqrt());
             it += 1;
-            let l2 = sum_sq.sqrt();
             report.residual_inf.push(max_d);
             report.residual_l2.push(l2);
             // `max` skips NaN, so a NaN change shows only in the sum of squares.
@@ -767,7 +779,7 @@ impl VelocitySolver for PgsSolver {
                 self.sync_rows();
                 return Err(self.diverged(it).into());
             }
-            if settings.converged(it, max_d, l2) {
+            if settings.converged(it, max_d, l2, sweep.contact_sq.sqrt()) {
                 report.converged = true;
                 break;
             }

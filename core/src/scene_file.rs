@@ -1,0 +1,214 @@
+//! Piles from files of circle positions, and the original thesis worlds compiled in.
+//!
+//! **Format** (CSV, a header line, then one line per circle):
+//! `world,seed,body_index,x,y,radius` — `world` groups the circles of one scene (any integer),
+//! `seed` names it (the seed that placed it), `body_index` orders the circles within it
+//! (creation order; need not be contiguous), `x`, `y` the centre in metres inside the box
+//! `[0, side]²`, `radius` in metres (> 0). Circles of one world must not overlap and must lie
+//! inside the box. Every error names the file, the line and the field.
+//!
+//! [`thesis_world`] loads `core/data/thesis_worlds_initial.csv`: the exact float32 initial
+//! positions of the ten comparison worlds (seeds 12345–12354) as the original code
+//! (LukasEngedal/Deep-Contact, modified pybox2d) created them.
+
+use crate::body::{BodyDesc, Material};
+use crate::error::CoreError;
+use crate::math::{Real, Vector};
+use crate::scene::{Scene, walls};
+use crate::shape::ShapeDesc;
+
+/// The original's ten comparison worlds (see the [module](self) docs).
+pub const THESIS_WORLDS_CSV: &str = include_str!("../data/thesis_worlds_initial.csv");
+
+/// The header every scene file starts with.
+pub const HEADER: &str = "world,seed,body_index,x,y,radius";
+
+/// One circle of a scene file.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FileCircle {
+    /// Scene number.
+    pub world: i64,
+    /// Seed the scene is known by.
+    pub seed: u64,
+    /// Creation order within the scene.
+    pub body_index: u64,
+    /// Centre (m).
+    pub centre: Vector,
+    /// Radius (m).
+    pub radius: Real,
+}
+
+/// Parses a scene file's text; `file` names it in errors.
+pub fn parse(text: &str, file: &str) -> Result<Vec<FileCircle>, CoreError> {
+    let err = |line: usize, field: &str, reason: String| CoreError::SceneFile {
+        file: file.to_string(),
+        line,
+        field: field.to_string(),
+        reason,
+    };
+    let mut lines = text.lines().enumerate();
+    match lines.next() {
+        Some((_, h)) if h.trim() == HEADER => {}
+        Some((_, h)) => {
+            return Err(err(
+                1,
+                "header",
+                format!("expected `{HEADER}`, found `{h}`"),
+            ));
+        }
+        None => return Err(err(0, "header", "the file is empty".into())),
+    }
+    let mut out = Vec::new();
+    for (i, line) in lines {
+        let n = i + 1;
+        if line.trim().is_empty() {
+            continue;
+        }
+        let cols: Vec<&str> = line.split(',').map(str::trim).collect();
+        if cols.len() != 6 {
+            return Err(err(n, "line", format!("{} fields, expected 6", cols.len())));
+        }
+        let names = ["world", "seed", "body_index", "x", "y", "radius"];
+        let int = |k: usize| {
+            cols[k]
+                .parse::<i64>()
+                .map_err(|e| err(n, names[k], format!("`{}`: {e}", cols[k])))
+        };
+        let uint = |k: usize| {
+            cols[k]
+                .parse::<u64>()
+                .map_err(|e| err(n, names[k], format!("`{}`: {e}", cols[k])))
+        };
+        let real = |k: usize| match cols[k].parse::<Real>() {
+            Ok(v) if v.is_finite() => Ok(v),
+            Ok(v) => Err(err(n, names[k], format!("{v} is not finite"))),
+            Err(e) => Err(err(n, names[k], format!("`{}`: {e}", cols[k]))),
+        };
+        let circle = FileCircle {
+            world: int(0)?,
+            seed: uint(1)?,
+            body_index: uint(2)?,
+            centre: Vector::new(real(3)?, real(4)?),
+            radius: real(5)?,
+        };
+        if circle.radius <= 0.0 {
+            return Err(err(n, "radius", format!("{} must be > 0", circle.radius)));
+        }
+        out.push(circle);
+    }
+    if out.is_empty() {
+        return Err(err(0, "world", "no circle in the file".into()));
+    }
+    Ok(out)
+}
+
+/// The pile of the circles of `circles` with seed `seed`, in `body_index` order, in the
+/// thesis box of side `side` (walls first, as [`crate::scene::pile`]); circles checked to lie
+/// inside the box and not to overlap.
+pub fn pile_from_circles(
+    circles: &[FileCircle],
+    seed: u64,
+    side: Real,
+    file: &str,
+) -> Result<Scene, CoreError> {
+    let err = |field: &str, reason: String| CoreError::SceneFile {
+        file: file.to_string(),
+        line: 0,
+        field: field.to_string(),
+        reason,
+    };
+    let mut mine: Vec<&FileCircle> = circles.iter().filter(|c| c.seed == seed).collect();
+    if mine.is_empty() {
+        let mut seeds: Vec<u64> = circles.iter().map(|c| c.seed).collect();
+        seeds.sort_unstable();
+        seeds.dedup();
+        return Err(err(
+            "seed",
+            format!("no world with seed {seed} (the file has {seeds:?})"),
+        ));
+    }
+    mine.sort_by_key(|c| c.body_index);
+    for (k, c) in mine.iter().enumerate() {
+        let (p, r) = (c.centre, c.radius);
+        if p.x < r || p.y < r || p.x > side - r || p.y > side - r {
+            return Err(err(
+                "x",
+                format!(
+                    "circle {} at ({}, {}) is not inside the box [0, {side}]²",
+                    c.body_index, p.x, p.y
+                ),
+            ));
+        }
+        if let Some(o) = mine[..k]
+            .iter()
+            .find(|o| (o.centre - p).norm() < o.radius + r - 1e-9)
+        {
+            return Err(err(
+                "x",
+                format!("circles {} and {} overlap", o.body_index, c.body_index),
+            ));
+        }
+    }
+    let mut bodies = walls(side, Material::default());
+    bodies.extend(mine.iter().map(|c| {
+        BodyDesc::dynamic(ShapeDesc::Ball { radius: c.radius }, c.centre)
+            .with_material(Material::default())
+    }));
+    Ok(Scene {
+        name: "thesis".into(),
+        bodies,
+        min: Vector::zeros(),
+        max: Vector::new(side, side),
+    })
+}
+
+/// The original code's initial world for `seed` (12345 to 12354), in its 15 × 15 m box.
+///
+/// ```
+/// let scene = deepcontact_core::scene_file::thesis_world(12345).unwrap();
+/// assert_eq!(scene.bodies.len(), 4 + 100);
+/// assert!(deepcontact_core::scene_file::thesis_world(7).is_err());
+/// ```
+pub fn thesis_world(seed: u64) -> Result<Scene, CoreError> {
+    let circles = parse(THESIS_WORLDS_CSV, "<embedded thesis worlds>")?;
+    pile_from_circles(&circles, seed, 15.0, "<embedded thesis worlds>")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bad_files_name_the_line_and_field() {
+        let e = |t: &str| parse(t, "f.csv").unwrap_err().to_string();
+        assert!(e("").contains("empty"));
+        assert!(e("x,y\n").contains("header"));
+        let h = format!("{HEADER}\n");
+        assert!(e(&format!("{h}1,2,3,4\n")).contains("line 2, field line"));
+        assert!(e(&format!("{h}1,2,3,abc,1,0.5\n")).contains("field x"));
+        assert!(e(&format!("{h}1,2,3,1,inf,0.5\n")).contains("field y"));
+        assert!(e(&format!("{h}1,2,3,1,1,-0.5\n")).contains("field radius"));
+        assert!(e(&h).contains("no circle"));
+        let two = parse(&format!("{h}1,9,1,5,5,0.5\n1,9,2,5.5,5,0.5\n"), "f.csv").unwrap();
+        let overlap = pile_from_circles(&two, 9, 15.0, "f.csv")
+            .unwrap_err()
+            .to_string();
+        assert!(overlap.contains("overlap"), "{overlap}");
+        let out = parse(&format!("{h}1,9,1,0.2,5,0.5\n"), "f.csv").unwrap();
+        assert!(pile_from_circles(&out, 9, 15.0, "f.csv").is_err());
+        assert!(
+            pile_from_circles(&out, 8, 15.0, "f.csv")
+                .unwrap_err()
+                .to_string()
+                .contains("seed 8")
+        );
+    }
+
+    #[test]
+    fn the_ten_thesis_worlds_load() {
+        for seed in 12345..12355 {
+            let s = thesis_world(seed).unwrap();
+            assert_eq!(s.bodies.len(), 104);
+        }
+    }
+}
