@@ -62,6 +62,19 @@ pub struct SolverArgs {
     /// default is 0.005).
     #[arg(long, default_value_t = 0.0005)]
     pub linear_slop: f64,
+    /// What the position pass's stop rule measures: the largest correction C (m), or the
+    /// largest position impulse −C/K, as the original thesis code.
+    #[arg(long, value_enum, default_value = "correction")]
+    pub position_stop: PositionStopArg,
+}
+
+/// What the position pass's stop rule measures.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum PositionStopArg {
+    /// The largest correction C (m) < tolerance (Box2D v2.4).
+    Correction,
+    /// The largest position impulse −C/K ≤ tolerance (the original thesis code).
+    Impulse,
 }
 
 impl SolverArgs {
@@ -81,6 +94,7 @@ impl SolverArgs {
             prediction: self.prediction,
             position: deepcontact_core::PositionSettings {
                 linear_slop: self.linear_slop,
+                stop_on_impulse: matches!(self.position_stop, PositionStopArg::Impulse),
                 ..deepcontact_core::PositionSettings::default()
             },
             ..WorldSettings::default()

@@ -9,6 +9,7 @@ use deepcontact_core::registry::split_spec_list;
 use deepcontact_experiments::compare::{
     Config, DEFAULT_SEEDS, DEFAULT_WARM_STARTS, run_experiment_with, write_outputs,
 };
+use deepcontact_experiments::preset::Preset;
 use deepcontact_experiments::seeds::parse_seeds;
 
 use crate::common::{CliError, SolverArgs};
@@ -33,6 +34,11 @@ pub struct CompareArgs {
     /// seeds 12345–12354).
     #[arg(long, default_value = "pile")]
     pub scene: String,
+    /// `thesis`: the original code's choices (scene `thesis`, its stop rules, its `copy`
+    /// oracles), overriding `--scene`, `--norm`, `--position-stop`, `--tolerance` and
+    /// `--max-iterations`; see `deepcontact_experiments::preset`.
+    #[arg(long, default_value = "default")]
+    pub preset: String,
     /// Velocity solver and stop rule (`--solver` is replaced by `--solvers` when given).
     #[command(flatten)]
     pub solver: SolverArgs,
@@ -56,18 +62,22 @@ pub struct CompareArgs {
 impl CompareArgs {
     /// The experiment these options describe.
     pub fn config(&self) -> Result<Config, CliError> {
+        let preset = Preset::parse(&self.preset)?;
         let solvers = match &self.solvers {
             Some(list) => split_spec_list(list)?,
             None => vec![self.solver.solver.parse()?],
         };
         Ok(Config {
-            warm_starts: split_spec_list(&self.warm_starts)?,
-            solvers,
+            warm_starts: split_spec_list(&self.warm_starts)?
+                .iter()
+                .map(|s| preset.warm_start(s))
+                .collect(),
+            solvers: solvers.iter().map(|s| preset.solver(s)).collect(),
             seeds: parse_seeds(&self.seeds)?,
             steps: self.steps,
             bodies: self.bodies,
-            scene: self.scene.clone(),
-            world: self.solver.world_settings(),
+            scene: preset.scene().unwrap_or(&self.scene).to_string(),
+            world: preset.world(self.solver.world_settings()),
             threads: self.threads.unwrap_or(0),
             progress: !self.quiet,
         })

@@ -204,6 +204,9 @@ pub struct PositionSettings {
     pub linear_slop: Real,
     /// Largest correction per point per iteration (default 0.2 m).
     pub max_linear_correction: Real,
+    /// Measure the stop rule on the largest position impulse `−C/K` (kg·m) instead of the
+    /// largest correction `C` (m), as the original thesis code does (default false).
+    pub stop_on_impulse: bool,
 }
 
 impl Default for PositionSettings {
@@ -215,6 +218,7 @@ impl Default for PositionSettings {
             baumgarte: 0.2,
             linear_slop: 0.0005,
             max_linear_correction: 0.2,
+            stop_on_impulse: false,
         }
     }
 }
@@ -273,7 +277,8 @@ pub struct PositionReport {
     pub iterations: u32,
     /// Smallest separation seen in the last iteration (negative = penetration).
     pub min_separation: Real,
-    /// Largest correction applied in the last iteration.
+    /// Largest correction applied in the last iteration (m), or the largest position impulse
+    /// `−C/K` with [`PositionSettings::stop_on_impulse`].
     pub max_correction: Real,
 }
 

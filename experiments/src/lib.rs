@@ -45,6 +45,7 @@ mod error;
 pub mod generate;
 pub mod limits;
 pub mod plots;
+pub mod preset;
 mod registry;
 pub mod render;
 pub mod roundtrip;

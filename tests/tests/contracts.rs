@@ -400,3 +400,27 @@ fn observe_sees_the_zero_start_of_a_fallback_and_the_world_resets_the_provider_o
     assert_eq!(probe.resets, 1, "reset before the first step only");
     assert_eq!(probe.gravity, Some(world.settings().gravity));
 }
+
+#[test]
+fn the_contact_stop_rule_is_pgs_only_and_stops_a_settled_pile() {
+    use deepcontact_core::ResidualNorm;
+    let contact = SolverSettings {
+        norm: ResidualNorm::Contact,
+        ..SolverSettings::default()
+    };
+    let (problem, carried) = settled_problems().into_iter().next().unwrap();
+    let (_, _, report) = solve(&problem, &carried, &contact);
+    assert!(report.converged && report.iterations >= 1);
+    for mut solver in [
+        Box::new(deepcontact_lcp::PsorSolver::new()) as Box<dyn VelocitySolver>,
+        Box::new(deepcontact_lcp::NewtonSolver::new()),
+    ] {
+        let mut imp = carried.clone();
+        let mut vel = vec![Velocity::default(); problem.bodies.len()];
+        let mut r = SolveReport::default();
+        let err = solver
+            .solve(&problem, &contact, &mut imp, &mut vel, &mut r)
+            .unwrap_err();
+        assert!(err.to_string().contains("pgs only"), "{err}");
+    }
+}

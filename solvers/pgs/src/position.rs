@@ -81,7 +81,11 @@ impl PositionSolver for PgsPositionSolver {
                     + a0.inv_inertia * rna * rna
                     + b0.inv_inertia * rnb * rnb;
                 let impulse = if k > 0.0 { -c / k } else { 0.0 };
-                max_corr = max_corr.max(c.abs());
+                max_corr = max_corr.max(if settings.stop_on_impulse {
+                    impulse.abs()
+                } else {
+                    c.abs()
+                });
                 let pv = impulse * p.normal;
                 poses[ia].position -= a0.inv_mass * pv;
                 poses[ia].angle -= a0.inv_inertia * cross(&ra, &pv);
@@ -91,7 +95,12 @@ impl PositionSolver for PgsPositionSolver {
             report.iterations = it + 1;
             report.min_separation = min_sep;
             report.max_correction = max_corr;
-            if max_corr < settings.tolerance && min_sep >= limit {
+            let small = if settings.stop_on_impulse {
+                max_corr <= settings.tolerance
+            } else {
+                max_corr < settings.tolerance
+            };
+            if small && min_sep >= limit {
                 break;
             }
         }

@@ -28,6 +28,10 @@ pub struct PgsSettings {
     /// bit-identical to the one-at-a-time loop (the manifolds of a colour are independent and
     /// each lane does the scalar arithmetic); only `Σ Δλ²` is summed in another order.
     pub lanes: bool,
+    /// Apply the warm start's tangent impulses as given, even outside the friction cone
+    /// `|λt| ≤ μ λn`, as the original thesis code does (default false: projected onto the
+    /// cone). Negative normal impulses are raised to 0 either way.
+    pub raw_start: bool,
 }
 
 impl Default for PgsSettings {
@@ -37,6 +41,7 @@ impl Default for PgsSettings {
             validate: true,
             ordering: Ordering::Coloured,
             lanes: true,
+            raw_start: false,
         }
     }
 }
@@ -187,6 +192,7 @@ impl PgsSolver {
             w: b.angular_velocity,
         }));
         self.rows.clear();
+        let raw = self.settings.raw_start;
         self.rows
             .extend(problem.points.iter().zip(start).map(|(p, s)| {
                 let t = p.tangent();
@@ -195,7 +201,9 @@ impl PgsSolver {
                 // non-finite check of the first sweep.
                 let start_normal = if s.normal < 0.0 { 0.0 } else { s.normal };
                 let bound = p.friction * start_normal;
-                let start_tangent = if s.tangent > bound {
+                let start_tangent = if raw {
+                    s.tangent
+                } else if s.tangent > bound {
                     bound
                 } else if s.tangent < -bound {
                     -bound

@@ -3,8 +3,8 @@
 use deepcontact_core::Velocity;
 
 use deepcontact_core::{
-    Impulse, Real, SolveReport, SolverSettings, VelocitySolver, WarmStart, WarmStartContext,
-    WarmStartError,
+    Impulse, Real, ResidualNorm, SolveReport, SolverSettings, VelocitySolver, WarmStart,
+    WarmStartContext, WarmStartError,
 };
 
 use deepcontact_core::SpecError;
@@ -17,6 +17,9 @@ pub struct OracleConfig {
     pub tolerance: Real,
     /// Iteration cap of the oracle's solve (default 10 000).
     pub max_iterations: u32,
+    /// Norm of the oracle's stop rule (default ∞-norm; the thesis preset uses
+    /// [`ResidualNorm::Contact`], the original's rule).
+    pub norm: ResidualNorm,
 }
 
 impl Default for OracleConfig {
@@ -24,16 +27,18 @@ impl Default for OracleConfig {
         Self {
             tolerance: 1e-6,
             max_iterations: 10_000,
+            norm: ResidualNorm::Infinity,
         }
     }
 }
 
 impl OracleConfig {
-    /// The solver settings of the oracle's solve (∞-norm, at least one iteration).
+    /// The solver settings of the oracle's solve (at least one iteration).
     pub fn settings(&self) -> SolverSettings {
         SolverSettings {
             max_iterations: self.max_iterations,
             tolerance: self.tolerance,
+            norm: self.norm,
             ..SolverSettings::default()
         }
     }

@@ -1,7 +1,7 @@
 //! Registration of the baseline providers.
 
 use deepcontact_core::registry::{Params, ProviderInfo, Registry, SpecError};
-use deepcontact_core::{CarriedWarmStart, Impulse, ZeroWarmStart};
+use deepcontact_core::{CarriedWarmStart, Impulse, ResidualNorm, ZeroWarmStart};
 
 use crate::{
     ConstantWarmStart, OracleConfig, OracleWarmStart, RandomConfig, RandomWarmStart, Rounded,
@@ -59,7 +59,7 @@ pub fn register(registry: &mut Registry) {
         "copy",
         ProviderInfo::new(
             "oracle: solve this step's problem first and start from that; \
-             solver=pgs, tolerance=1e-6, max_iterations=10000, decimals= (round, as copy2/copy0)",
+             solver=pgs, tolerance=1e-6, max_iterations=10000, norm=inf|l2|contact, decimals= (round, as copy2/copy0)",
         )
         .oracle(),
         |p, r| {
@@ -75,7 +75,7 @@ pub fn register(registry: &mut Registry) {
     registry.register_provider(
         "copy2",
         ProviderInfo::new(
-            "copy rounded to 2 decimals; solver=pgs, tolerance=1e-6, max_iterations=10000",
+            "copy rounded to 2 decimals; solver=pgs, tolerance=1e-6, max_iterations=10000, norm=inf|l2|contact",
         )
         .oracle(),
         |p, r| Ok(Box::new(Rounded::new(build_oracle(p, r)?, 2)?)),
@@ -83,7 +83,7 @@ pub fn register(registry: &mut Registry) {
     registry.register_provider(
         "copy0",
         ProviderInfo::new(
-            "copy rounded to 0 decimals (normals clamped to >= 0); solver=pgs, tolerance=1e-6, max_iterations=10000",
+            "copy rounded to 0 decimals (normals clamped to >= 0); solver=pgs, tolerance=1e-6, max_iterations=10000, norm=inf|l2|contact",
         )
         .oracle(),
         |p, r| Ok(Box::new(Rounded::new(build_oracle(p, r)?, 0)?)),
@@ -100,7 +100,8 @@ fn decimals_u32(spec: &str, d: u64) -> Result<u32, SpecError> {
 }
 
 /// The oracle's parameters: `solver` (a registry solver spec, default `pgs`), `tolerance`
-/// (default 1e-6, ≥ 0) and `max_iterations` (default 10 000, 1 ..= u32::MAX).
+/// (default 1e-6, ≥ 0), `max_iterations` (default 10 000, 1 ..= u32::MAX) and `norm`
+/// (`inf` default, `l2`, `contact`: the original code's rule).
 fn build_oracle(p: &mut Params<'_>, registry: &Registry) -> Result<OracleWarmStart, SpecError> {
     let d = OracleConfig::default();
     let spec = p.name().to_string();
@@ -125,12 +126,18 @@ fn build_oracle(p: &mut Params<'_>, registry: &Registry) -> Result<OracleWarmSta
             ));
         }
     };
+    let norm = match p.choice("norm", &["inf", "l2", "contact"])? {
+        None | Some("inf") => ResidualNorm::Infinity,
+        Some("l2") => ResidualNorm::L2,
+        Some(_) => ResidualNorm::Contact,
+    };
     let solver = registry.build_solver(p.string("solver").unwrap_or("pgs"))?;
     OracleWarmStart::new(
         solver,
         OracleConfig {
             tolerance,
             max_iterations,
+            norm,
         },
     )
 }

@@ -153,6 +153,7 @@ fn copy_is_the_converged_solution_and_the_next_solve_is_nearly_free() {
         OracleConfig {
             tolerance: 0.0,
             max_iterations: 2,
+            ..OracleConfig::default()
         },
     )
     .unwrap();
@@ -164,7 +165,8 @@ fn copy_is_the_converged_solution_and_the_next_solve_is_nearly_free() {
             solver,
             OracleConfig {
                 tolerance: -1.0,
-                max_iterations: 2
+                max_iterations: 2,
+                ..OracleConfig::default()
             }
         )
         .is_err()
