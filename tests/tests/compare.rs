@@ -65,13 +65,14 @@ fn compare_writes_every_file_and_ignores_the_thread_count() {
     assert_eq!(
         one.warm_starts,
         [
-            "none", "builtin", "random", "bad", "copy", "copy2", "copy0", "pressure", "peak"
+            "none", "builtin", "random", "bad", "copy", "copy2", "copy0", "grid", "pressure",
+            "peak"
         ]
     );
     assert_same_numbers(&one, &two);
 
     let rows = compare::summarize(&one);
-    assert_eq!(rows.len(), 9);
+    assert_eq!(rows.len(), 10);
     let row = |name: &str| rows.iter().find(|r| r.warm_start == name).unwrap();
     assert!(
         row("none").contact_steps > 5,
@@ -92,7 +93,8 @@ fn compare_writes_every_file_and_ignores_the_thread_count() {
 
     let dir = scratch_dir("compare");
     let outputs = compare::write_outputs(&one, &dir, true).unwrap();
-    assert_eq!(outputs.files.len(), 5 + 2 * 5);
+    // 5 tables, 5 figures and one per thesis group, each as PNG and SVG.
+    assert_eq!(outputs.files.len(), 5 + 2 * (5 + 5));
     for f in &outputs.files {
         assert!(
             f.is_file() && std::fs::metadata(f).unwrap().len() > 0,
@@ -104,7 +106,7 @@ fn compare_writes_every_file_and_ignores_the_thread_count() {
     let steps = read("steps.csv");
     let mut lines = steps.lines();
     assert_eq!(lines.next(), Some(STEPS_COLUMNS));
-    assert_eq!(lines.count(), 9 * 2 * 45);
+    assert_eq!(lines.count(), 10 * 2 * 45);
     for col in [
         "contacts",
         "iterations",
@@ -124,12 +126,12 @@ fn compare_writes_every_file_and_ignores_the_thread_count() {
     let curves = read("curves.csv");
     assert_eq!(curves.lines().next(), Some(CURVES_COLUMNS));
     assert!(
-        curves.lines().count() > 9,
+        curves.lines().count() > 10,
         "one row per iteration at least for each warm start"
     );
     let summary = read("summary.csv");
     assert_eq!(summary.lines().next(), Some(SUMMARY_COLUMNS));
-    assert_eq!(summary.lines().count(), 1 + 9);
+    assert_eq!(summary.lines().count(), 1 + 10);
     let md = read("summary.md");
     assert_eq!(md, outputs.summary_md);
     for col in [
@@ -154,11 +156,21 @@ fn compare_writes_every_file_and_ignores_the_thread_count() {
         assert!(md.contains(col), "summary.md has {col}");
     }
     let json = read("summary.json");
-    assert_eq!(json.matches("\"warm_start\":").count(), 9, "{json}");
+    assert_eq!(json.matches("\"warm_start\":").count(), 10, "{json}");
     assert!(json.contains("\"seeds\": [") && json.contains("\"copy0\""));
     let png = std::fs::read(dir.join("figures/residual.png")).unwrap();
     assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
     assert!(read("figures/mse.svg").starts_with("<svg"));
+    // The thesis's groups, each with none and builtin as references.
+    for group in [
+        "none_builtin",
+        "random_bad_copy",
+        "copy2_copy0",
+        "grid",
+        "cnn",
+    ] {
+        assert!(dir.join(format!("figures/iterations_{group}.png")).is_file(), "{group}");
+    }
     // Nothing half-written is left behind.
     for d in [dir.clone(), dir.join("figures")] {
         for entry in std::fs::read_dir(d).unwrap() {

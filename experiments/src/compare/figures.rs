@@ -23,21 +23,38 @@ fn per_step(
         .collect()
 }
 
+/// The thesis's groups of providers (Figures 20–28): each group gets its own iterations
+/// figure, `iterations_<group>.{png,svg}`, with `none` and `builtin` as references.
+pub const THESIS_GROUPS: [(&str, &[&str]); 5] = [
+    ("none_builtin", &["none", "builtin"]),
+    ("random_bad_copy", &["random", "bad", "copy"]),
+    ("copy2_copy0", &["copy2", "copy0"]),
+    ("grid", &["grid"]),
+    ("cnn", &["pressure", "peak"]),
+];
+
+/// The registry name of a warm-start label (`copy:tolerance=…` → `copy`).
+fn base_name(label: &str) -> &str {
+    label.split(':').next().unwrap_or(label)
+}
+
 /// The thesis's figures for solver `s`: `(file stem, figure)`.
 pub fn figures(results: &Results, curves: &[Curve], s: usize) -> Vec<(&'static str, Figure)> {
     let solver = &results.solvers[s];
     let n_seeds = results.config.seeds.len();
     let steps = results.config.steps;
     let nw = results.warm_starts.len();
-    let series = |f: &dyn Fn(usize) -> Vec<(f64, f64)>| -> Vec<Series> {
-        (0..nw)
-            .map(|w| Series {
+    let all_providers: Vec<usize> = (0..nw).collect();
+    let series_of = |ws: &[usize], f: &dyn Fn(usize) -> Vec<(f64, f64)>| -> Vec<Series> {
+        ws.iter()
+            .map(|&w| Series {
                 label: results.warm_starts[w].clone(),
                 color: plots::color(w),
                 points: f(w),
             })
             .collect()
     };
+    let series = |f: &dyn Fn(usize) -> Vec<(f64, f64)>| series_of(&all_providers, f);
     let all = |_: &StepRecord| true;
     let contact = |r: &StepRecord| r.contacts > 0;
     let curve = |w: usize| &curves[s * nw + w];
@@ -54,12 +71,15 @@ pub fn figures(results: &Results, curves: &[Curve], s: usize) -> Vec<(&'static s
         series: series(&|w| per_step(results.group(s, w), steps, all, |r| r.contacts as f64)),
         ..Panel::default()
     };
-    let iterations = Panel {
-        title: "Velocity iterations per step (steps with contacts)".into(),
+    let iterations_of = |ws: &[usize], scale: Scale| Panel {
+        title: format!(
+            "Velocity iterations per step (steps with contacts), {} scale",
+            if scale == Scale::Log { "log" } else { "linear" }
+        ),
         x_label: step_label.clone(),
         y_label: "iterations".into(),
-        y_scale: Scale::Log,
-        series: series(&|w| {
+        y_scale: scale,
+        series: series_of(ws, &|w| {
             per_step(results.group(s, w), steps, contact, |r| {
                 f64::from(r.iterations)
             })
@@ -67,17 +87,18 @@ pub fn figures(results: &Results, curves: &[Curve], s: usize) -> Vec<(&'static s
         ..Panel::default()
     };
     let left = Panel {
-        title: "Steps still iterating after i iterations".into(),
+        title: "Steps still iterating after i iterations, mean per simulation".into(),
         x_label: "iteration i".into(),
-        y_label: "iterators left (steps)".into(),
+        y_label: "iterators left (steps per simulation)".into(),
         series: series(&|w| {
             let c = curve(w);
-            std::iter::once((0.0, c.steps as f64))
+            let per_sim = |n: usize| n as f64 / n_seeds.max(1) as f64;
+            std::iter::once((0.0, per_sim(c.steps)))
                 .chain(
                     c.iterators_left
                         .iter()
                         .enumerate()
-                        .map(|(i, &n)| ((i + 1) as f64, n as f64)),
+                        .map(|(i, &n)| ((i + 1) as f64, per_sim(n))),
                 )
                 .collect()
         }),
@@ -120,14 +141,20 @@ pub fn figures(results: &Results, curves: &[Curve], s: usize) -> Vec<(&'static s
         series: series(&|w| per_step(results.group(s, w), steps, contact, f)),
         ..Panel::default()
     };
-    vec![
+    let mut out = vec![
         (
             "contacts",
             Figure::new(format!("Contacts per step — {of}"), vec![contacts]),
         ),
         (
             "iterations",
-            Figure::new(format!("Iterations per step — {of}"), vec![iterations]),
+            Figure::new(
+                format!("Iterations per step — {of}"),
+                vec![
+                    iterations_of(&all_providers, Scale::Log),
+                    iterations_of(&all_providers, Scale::Linear),
+                ],
+            ),
         ),
         (
             "iterators_left",
@@ -153,5 +180,34 @@ pub fn figures(results: &Results, curves: &[Curve], s: usize) -> Vec<(&'static s
                 ],
             ),
         ),
-    ]
+    ];
+    // One iterations figure per thesis group present, none and builtin as references.
+    let find =
+        |name: &'static str| (0..nw).filter(move |&w| base_name(&results.warm_starts[w]) == name);
+    for (group, members) in THESIS_GROUPS {
+        let own: Vec<usize> = members.iter().flat_map(|m| find(m)).collect();
+        if own.is_empty() {
+            continue;
+        }
+        let mut ws: Vec<usize> = ["none", "builtin"].iter().flat_map(|m| find(m)).collect();
+        ws.extend(own.iter().filter(|w| !ws.contains(w)).collect::<Vec<_>>());
+        let stem = match group {
+            "none_builtin" => "iterations_none_builtin",
+            "random_bad_copy" => "iterations_random_bad_copy",
+            "copy2_copy0" => "iterations_copy2_copy0",
+            "grid" => "iterations_grid",
+            _ => "iterations_cnn",
+        };
+        out.push((
+            stem,
+            Figure::new(
+                format!("Iterations per step, {} — {of}", members.join(", ")),
+                vec![
+                    iterations_of(&ws, Scale::Log),
+                    iterations_of(&ws, Scale::Linear),
+                ],
+            ),
+        ));
+    }
+    out
 }
