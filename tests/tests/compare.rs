@@ -169,7 +169,11 @@ fn compare_writes_every_file_and_ignores_the_thread_count() {
         "grid",
         "cnn",
     ] {
-        assert!(dir.join(format!("figures/iterations_{group}.png")).is_file(), "{group}");
+        assert!(
+            dir.join(format!("figures/iterations_{group}.png"))
+                .is_file(),
+            "{group}"
+        );
     }
     // Nothing half-written is left behind.
     for d in [dir.clone(), dir.join("figures")] {
