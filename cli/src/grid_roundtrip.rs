@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use clap::Args;
+use deepcontact_experiments::preset::Preset;
 use deepcontact_experiments::roundtrip::{RoundtripConfig, markdown, table, write_roundtrip};
 
 use crate::common::CliError;
@@ -25,16 +26,20 @@ pub struct GridRoundtripArgs {
     /// Output directory.
     #[arg(long, default_value = "results")]
     pub out: PathBuf,
+    /// `thesis`: settle with the original's Step(0.01, 10, 10) and average per world.
+    #[arg(long, default_value = "default")]
+    pub preset: String,
 }
 
 /// Runs `grid-roundtrip`: prints the table and writes CSV + Markdown into `--out`.
 pub fn run(args: GridRoundtripArgs) -> Result<(), CliError> {
-    let config = RoundtripConfig {
+    let config = Preset::parse(&args.preset)?.roundtrip(RoundtripConfig {
         worlds: args.worlds,
         steps: args.steps,
         first_seed: args.first_seed,
         bodies: args.bodies,
-    };
+        ..RoundtripConfig::default()
+    });
     let rows = table(&config)?;
     print!("{}", markdown(&rows, &config));
     let [csv, md] = write_roundtrip(&rows, &config, &args.out)?;

@@ -17,7 +17,7 @@
 //! fresh world of its own (ours solves the same island problem).
 
 use deepcontact_core::registry::Spec;
-use deepcontact_core::{ResidualNorm, WorldSettings};
+use deepcontact_core::{Real, ResidualNorm, WorldSettings};
 
 use crate::ExperimentError;
 
@@ -58,6 +58,24 @@ impl Preset {
             world.position.max_iterations = 250;
         }
         world
+    }
+
+    /// Table 1's settings: the thesis preset settles the piles with the original's
+    /// `Step(0.01, 10, 10)` (10 velocity iterations, no early stop; at most 10 position
+    /// iterations, stopping once the penetration is within 3 × slop) and averages the
+    /// per-world means.
+    pub fn roundtrip(
+        self,
+        mut config: crate::roundtrip::RoundtripConfig,
+    ) -> crate::roundtrip::RoundtripConfig {
+        if self == Self::Thesis {
+            config.world.solver.tolerance = 0.0;
+            config.world.solver.max_iterations = 10;
+            config.world.position.max_iterations = 10;
+            config.world.position.tolerance = Real::MAX;
+            config.per_world_average = true;
+        }
+        config
     }
 
     /// The scene the preset starts from, if it fixes one.

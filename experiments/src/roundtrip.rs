@@ -22,7 +22,7 @@ use crate::ExperimentError;
 use crate::atomic::write_atomic;
 
 /// What to measure. [`RoundtripConfig::default`] is the table of `docs/`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RoundtripConfig {
     /// Number of piles, seeds `first_seed..first_seed + worlds` (default 25).
     pub worlds: u64,
@@ -32,6 +32,12 @@ pub struct RoundtripConfig {
     pub first_seed: u64,
     /// Circles per pile, the box scaled to keep the density (default 100).
     pub bodies: usize,
+    /// Settings the piles settle under (default: the thesis defaults; the thesis preset uses
+    /// the original's `Step(0.01, 10, 10)`, see [`crate::preset::Preset::roundtrip`]).
+    pub world: WorldSettings,
+    /// Average the per-world means (the original's Table 1) instead of pooling all bodies and
+    /// contacts of all worlds (default false).
+    pub per_world_average: bool,
 }
 
 impl Default for RoundtripConfig {
@@ -41,6 +47,8 @@ impl Default for RoundtripConfig {
             steps: 200,
             first_seed: 0,
             bodies: 100,
+            world: WorldSettings::default(),
+            per_world_average: false,
         }
     }
 }
@@ -54,6 +62,11 @@ pub struct Row {
     pub h: f64,
     /// Sums over all worlds.
     pub sums: RoundTripSums,
+    /// Mean absolute body-mass difference: pooled, or the mean of the per-world means with
+    /// [`RoundtripConfig::per_world_average`].
+    pub body_mean: f64,
+    /// Mean absolute contact normal-impulse difference, likewise.
+    pub contact_mean: f64,
     /// The thesis's (body, contact) means for this pair, if it has one.
     pub thesis: Option<(f64, f64)>,
 }
@@ -79,7 +92,7 @@ pub fn world_sums(
     config: &RoundtripConfig,
 ) -> Result<Vec<RoundTripSums>, ExperimentError> {
     let scene = scene::pile(seed, config.bodies)?;
-    let mut world = scene.build(WorldSettings::default())?;
+    let mut world = scene.build(config.world)?;
     let (mut solver, mut position) = (PgsSolver::new(), PgsPositionSolver::new());
     for _ in 0..config.steps {
         world.step(&mut CarriedWarmStart, &mut solver, &mut position)?;
@@ -112,15 +125,27 @@ pub fn table(config: &RoundtripConfig) -> Result<Vec<Row>, ExperimentError> {
             res,
             h,
             sums: RoundTripSums::default(),
+            body_mean: 0.0,
+            contact_mean: 0.0,
             thesis: THESIS_TABLE1
                 .iter()
                 .find(|t| t.0 == res && t.1 == h)
                 .map(|t| (t.2, t.3)),
         })
         .collect();
+    let n = per_world.len() as f64;
     for world in per_world {
         for (row, sums) in rows.iter_mut().zip(world?) {
             row.sums.add(&sums);
+            if config.per_world_average {
+                row.body_mean += sums.body_mean() / n;
+                row.contact_mean += sums.contact_mean() / n;
+            }
+        }
+    }
+    if !config.per_world_average {
+        for row in &mut rows {
+            (row.body_mean, row.contact_mean) = (row.sums.body_mean(), row.sums.contact_mean());
         }
     }
     Ok(rows)
@@ -146,8 +171,8 @@ pub fn csv(rows: &[Row]) -> Result<String, ExperimentError> {
     let bytes = crate::csv_bytes(rows.iter().map(|r| CsvRow {
         res: r.res,
         h: r.h,
-        body_mean_abs_diff: r.sums.body_mean(),
-        contact_mean_abs_diff: r.sums.contact_mean(),
+        body_mean_abs_diff: r.body_mean,
+        contact_mean_abs_diff: r.contact_mean,
         bodies: r.sums.bodies,
         contacts: r.sums.contacts,
         lost_bodies: r.sums.lost_bodies,
@@ -183,12 +208,7 @@ pub fn markdown(rows: &[Row], config: &RoundtripConfig) -> String {
         });
         s.push_str(&format!(
             "| {} | {} | {:.4} | {tb} | {:.4} | {tc} | {} | {} |\n",
-            r.res,
-            r.h,
-            r.sums.body_mean(),
-            r.sums.contact_mean(),
-            r.sums.lost_bodies,
-            r.sums.lost_contacts
+            r.res, r.h, r.body_mean, r.contact_mean, r.sums.lost_bodies, r.sums.lost_contacts
         ));
     }
     s
@@ -220,6 +240,7 @@ mod tests {
             steps: 30,
             first_seed: 0,
             bodies: 100,
+            ..RoundtripConfig::default()
         };
         let rows = table(&config).unwrap();
         assert_eq!(rows.len(), 9);
@@ -228,6 +249,14 @@ mod tests {
         assert!(get(0.25, 0.25).sums.body_mean() < 1e-4);
         assert!(get(0.5, 0.125).sums.body_mean() > get(0.25, 0.125).sums.body_mean());
         assert!(rows.iter().all(|r| r.thesis.is_some()));
+        assert!(rows.iter().all(|r| r.body_mean == r.sums.body_mean()));
+        // The original's settling and per-world averages: every world has 100 bodies, so the
+        // body means agree with the pooled ones; the run differs (10 iterations per step).
+        let thesis = crate::preset::Preset::Thesis.roundtrip(config);
+        let t = table(&thesis).unwrap();
+        let tget = |res: f64, h: f64| t.iter().find(|r| r.res == res && r.h == h).unwrap();
+        assert!((tget(0.5, 0.125).body_mean - tget(0.5, 0.125).sums.body_mean()).abs() < 1e-12);
+        assert!(tget(0.25, 0.25).contact_mean < 1e-3);
         let csv = csv(&rows).unwrap();
         assert_eq!(csv.lines().count(), 10);
         assert!(markdown(&rows, &config).contains("| 0.25 | 0.5 |"));
