@@ -3,6 +3,7 @@
 use clap::{Args, ValueEnum};
 use deepcontact_core::{ResidualNorm, SolverSettings, WorldSettings};
 use deepcontact_experiments::ExperimentError;
+use deepcontact_experiments::preset::Preset;
 
 /// Errors of the command-line tool: one line each, exit code 1.
 #[derive(Debug, thiserror::Error)]
@@ -66,6 +67,12 @@ pub struct SolverArgs {
     /// largest position impulse −C/K, as the original thesis code.
     #[arg(long, value_enum, default_value = "correction")]
     pub position_stop: PositionStopArg,
+    /// `thesis`: the original code's choices (its stop rules, raw warm starts, its `copy`
+    /// oracles, its initial worlds where the command has a scene), overriding `--norm`,
+    /// `--position-stop`, `--tolerance` and `--max-iterations`; see
+    /// `deepcontact_experiments::preset`.
+    #[arg(long, default_value = "default")]
+    pub preset: String,
 }
 
 /// What the position pass's stop rule measures.
@@ -78,6 +85,22 @@ pub enum PositionStopArg {
 }
 
 impl SolverArgs {
+    /// The preset named by `--preset`.
+    pub fn preset(&self) -> Result<Preset, CliError> {
+        Ok(Preset::parse(&self.preset)?)
+    }
+
+    /// The solver spec with the preset's options.
+    pub fn solver_spec(&self) -> Result<String, CliError> {
+        let spec: deepcontact_core::Spec = self.solver.parse()?;
+        Ok(self.preset()?.solver(&spec).to_string())
+    }
+
+    /// World settings (thesis defaults) with this stop rule and the preset's rules.
+    pub fn preset_world_settings(&self) -> Result<WorldSettings, CliError> {
+        Ok(self.preset()?.world(self.world_settings()))
+    }
+
     /// World settings (thesis defaults) with this stop rule.
     pub fn world_settings(&self) -> WorldSettings {
         WorldSettings {

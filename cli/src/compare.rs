@@ -9,7 +9,6 @@ use deepcontact_core::registry::split_spec_list;
 use deepcontact_experiments::compare::{
     Config, DEFAULT_SEEDS, DEFAULT_WARM_STARTS, run_experiment_with, write_outputs,
 };
-use deepcontact_experiments::preset::Preset;
 use deepcontact_experiments::seeds::parse_seeds;
 
 use crate::common::{CliError, SolverArgs};
@@ -34,11 +33,6 @@ pub struct CompareArgs {
     /// seeds 12345–12354).
     #[arg(long, default_value = "pile")]
     pub scene: String,
-    /// `thesis`: the original code's choices (scene `thesis`, its stop rules, its `copy`
-    /// oracles), overriding `--scene`, `--norm`, `--position-stop`, `--tolerance` and
-    /// `--max-iterations`; see `deepcontact_experiments::preset`.
-    #[arg(long, default_value = "default")]
-    pub preset: String,
     /// Velocity solver and stop rule (`--solver` is replaced by `--solvers` when given).
     #[command(flatten)]
     pub solver: SolverArgs,
@@ -62,7 +56,7 @@ pub struct CompareArgs {
 impl CompareArgs {
     /// The experiment these options describe.
     pub fn config(&self) -> Result<Config, CliError> {
-        let preset = Preset::parse(&self.preset)?;
+        let preset = self.solver.preset()?;
         let solvers = match &self.solvers {
             Some(list) => split_spec_list(list)?,
             None => vec![self.solver.solver.parse()?],

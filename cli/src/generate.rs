@@ -57,8 +57,8 @@ pub fn run(args: GenerateArgs, registry: &Registry) -> Result<(), CliError> {
         threads: args.jobs,
         force: args.force,
         progress: !args.quiet,
-        solver: args.solver.solver.clone(),
-        world: args.solver.world_settings(),
+        solver: args.solver.solver_spec()?,
+        world: args.solver.preset_world_settings()?,
     };
     let outcome = run_generate(&config, registry)?;
     if !args.quiet {

@@ -39,23 +39,30 @@ pub struct SimulateArgs {
 }
 
 impl SimulateArgs {
-    /// The run these options describe.
-    pub fn config(&self) -> SimulateConfig {
-        SimulateConfig {
-            scene: self.scene.clone(),
+    /// The run these options describe (with `--preset thesis`: the original's rules, and its
+    /// initial world when the scene is the pile).
+    pub fn config(&self) -> Result<SimulateConfig, CliError> {
+        let preset = self.solver.preset()?;
+        let scene = match preset.scene() {
+            Some(s) if self.scene == "pile" => s.to_string(),
+            _ => self.scene.clone(),
+        };
+        let warm: deepcontact_core::Spec = self.warm_start.parse()?;
+        Ok(SimulateConfig {
+            scene,
             bodies: self.bodies,
             seed: self.seed,
             steps: self.steps,
-            warm_start: self.warm_start.clone(),
-            solver: self.solver.solver.clone(),
-            world: self.solver.world_settings(),
-        }
+            warm_start: preset.warm_start(&warm).to_string(),
+            solver: self.solver.solver_spec()?,
+            world: self.solver.preset_world_settings()?,
+        })
     }
 }
 
 /// Runs `simulate`.
 pub fn run(args: SimulateArgs, registry: &Registry) -> Result<(), CliError> {
-    let config = args.config();
+    let config = args.config()?;
     let bar = if args.json {
         indicatif::ProgressBar::hidden()
     } else {

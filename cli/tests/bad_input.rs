@@ -219,6 +219,7 @@ fn cases(dir: &Path) -> Vec<Case> {
             ],
             "threads",
         ),
+        case("unknown preset", &sim(&["--preset", "nope"]), "preset"),
         case(
             "bad shard",
             &["generate", "--shard", "4/4", "--out", &out, "--quiet"],
