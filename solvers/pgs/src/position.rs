@@ -53,6 +53,7 @@ impl PositionSolver for PgsPositionSolver {
         for it in 0..settings.max_iterations {
             let mut min_sep = Real::INFINITY;
             let mut max_corr: Real = 0.0;
+            let mut max_imp: Real = 0.0;
             for (p, &(ra0, rb0)) in problem.points.iter().zip(&self.anchors) {
                 let (ia, ib) = (p.body_a as usize, p.body_b as usize);
                 let (a0, b0) = (&problem.bodies[ia], &problem.bodies[ib]);
@@ -81,11 +82,8 @@ impl PositionSolver for PgsPositionSolver {
                     + a0.inv_inertia * rna * rna
                     + b0.inv_inertia * rnb * rnb;
                 let impulse = if k > 0.0 { -c / k } else { 0.0 };
-                max_corr = max_corr.max(if settings.stop_on_impulse {
-                    impulse.abs()
-                } else {
-                    c.abs()
-                });
+                max_corr = max_corr.max(c.abs());
+                max_imp = max_imp.max(impulse.abs());
                 let pv = impulse * p.normal;
                 poses[ia].position -= a0.inv_mass * pv;
                 poses[ia].angle -= a0.inv_inertia * cross(&ra, &pv);
@@ -95,6 +93,9 @@ impl PositionSolver for PgsPositionSolver {
             report.iterations = it + 1;
             report.min_separation = min_sep;
             report.max_correction = max_corr;
+            if settings.stop_on_impulse {
+                max_corr = max_imp;
+            }
             let small = if settings.stop_on_impulse {
                 max_corr <= settings.tolerance
             } else {

@@ -8,7 +8,7 @@ use std::time::Instant;
 
 use deepcontact_core::math::{Real, Vector, Velocity, cross};
 use deepcontact_core::{
-    ContactProblem, CoreError, Impulse, SolveReport, SolverSettings, VelocitySolver,
+    ContactProblem, CoreError, Impulse, ResidualNorm, SolveReport, SolverSettings, VelocitySolver,
 };
 
 use crate::PgsError;
@@ -417,28 +417,29 @@ impl PgsSolver {
         }
     }
 
-    /// Stage 3, one Gauss-Seidel sweep. Returns its impulse changes' measures.
-    fn iterate(&mut self) -> Sweep {
+    /// Stage 3, one Gauss-Seidel sweep. Returns its impulse changes' measures; the
+    /// per-contact measure only with `CONTACT` (the hot loop carries no extra work otherwise).
+    fn iterate<const CONTACT: bool>(&mut self) -> Sweep {
         let mut acc = Sweep::default();
         if self.segments.is_empty() {
             for m in &self.manifolds {
-                sweep_manifold(m, &mut self.rows, &mut self.vel, &mut acc);
+                sweep_manifold::<CONTACT>(m, &mut self.rows, &mut self.vel, &mut acc);
             }
             return acc;
         }
-        let mut lanes = [Sweep::default(); LANES];
+        let mut lanes = LaneSweep::default();
         for seg in &self.segments {
             for batch in &mut self.batches[seg.batches.clone()] {
-                sweep_batch(batch, &mut self.vel, &mut lanes);
+                sweep_batch::<CONTACT>(batch, &mut self.vel, &mut lanes);
             }
             for m in &self.scratch[seg.manifolds.clone()] {
-                sweep_manifold(m, &mut self.rows, &mut self.vel, &mut acc);
+                sweep_manifold::<CONTACT>(m, &mut self.rows, &mut self.vel, &mut acc);
             }
         }
-        for lane in &lanes {
-            acc.max = acc.max.max(lane.max);
-            acc.sum_sq += lane.sum_sq;
-            acc.contact_sq = acc.contact_sq.max(lane.contact_sq);
+        for lane in 0..LANES {
+            acc.max = acc.max.max(lanes.max[lane]);
+            acc.sum_sq += lanes.sum_sq[lane];
+            acc.contact_sq = acc.contact_sq.max(lanes.contact_sq[lane]);
         }
         acc
     }
@@ -519,11 +520,26 @@ struct Sweep {
     contact_sq: Real,
 }
 
+/// [`Sweep`] per lane of [`sweep_batch`], as structure of arrays (one register per measure).
+#[derive(Debug, Clone, Copy, Default)]
+struct LaneSweep {
+    max: [Real; LANES],
+    sum_sq: [Real; LANES],
+    contact_sq: [Real; LANES],
+}
+
 /// One manifold's rows: friction first (bounded by the current normal impulse), then the
 /// normal rows (block solver for a 2-point manifold with a well-conditioned `K`).
 #[inline(always)]
-fn sweep_manifold(m: &Manifold, rows: &mut [Row], vel: &mut [Vel], acc: &mut Sweep) {
+fn sweep_manifold<const CONTACT: bool>(
+    m: &Manifold,
+    rows: &mut [Row],
+    vel: &mut [Vel],
+    acc: &mut Sweep,
+) {
     let rows = &mut rows[m.start as usize..(m.start + m.count) as usize];
+    // Accumulated in locals (registers), written back once.
+    let (mut mx, mut sq, mut cs) = (acc.max, acc.sum_sq, acc.contact_sq);
     let (mut va, mut vb) = (vel[m.a as usize], vel[m.b as usize]);
     // The original's per-contact measure: the largest signed friction change (from 0), and
     // the normal change of a one-point manifold.
@@ -534,14 +550,16 @@ fn sweep_manifold(m: &Manifold, rows: &mut [Row], vel: &mut [Vel], acc: &mut Swe
         let d = new - r.lt;
         r.lt = new;
         apply_tangent(m, r, &mut va, &mut vb, d);
-        acc.max = acc.max.max(d.abs());
-        acc.sum_sq += d * d;
-        t_pos = t_pos.max(d);
+        mx = mx.max(d.abs());
+        sq += d * d;
+        if CONTACT {
+            t_pos = t_pos.max(d);
+        }
     }
     if let Some(k) = &m.block {
         let (d1, d2) = solve_block(m, rows, k, &mut va, &mut vb);
-        acc.max = acc.max.max(d1.abs()).max(d2.abs());
-        acc.sum_sq += d1 * d1 + d2 * d2;
+        mx = mx.max(d1.abs()).max(d2.abs());
+        sq += d1 * d1 + d2 * d2;
     } else {
         for r in rows.iter_mut() {
             let vn = normal_velocity(r, &va, &vb);
@@ -549,15 +567,18 @@ fn sweep_manifold(m: &Manifold, rows: &mut [Row], vel: &mut [Vel], acc: &mut Swe
             let d = new - r.ln;
             r.ln = new;
             apply_normal(m, r, &mut va, &mut vb, d);
-            acc.max = acc.max.max(d.abs());
-            acc.sum_sq += d * d;
+            mx = mx.max(d.abs());
+            sq += d * d;
             n_one = d;
         }
         if m.count != 1 {
             n_one = 0.0;
         }
     }
-    acc.contact_sq = acc.contact_sq.max(n_one * n_one + t_pos * t_pos);
+    if CONTACT {
+        cs = cs.max(n_one * n_one + t_pos * t_pos);
+    }
+    (acc.max, acc.sum_sq, acc.contact_sq) = (mx, sq, cs);
     store(vel, m, va, vb);
 }
 
@@ -567,7 +588,7 @@ fn sweep_manifold(m: &Manifold, rows: &mut [Row], vel: &mut [Vel], acc: &mut Swe
 /// bodies back. The lanes' bodies are distinct (one colour), except immovable ones, which
 /// are read but never written.
 #[inline(always)]
-fn sweep_batch(b: &mut Batch, vel: &mut [Vel], lanes: &mut [Sweep; LANES]) {
+fn sweep_batch<const CONTACT: bool>(b: &mut Batch, vel: &mut [Vel], lanes: &mut LaneSweep) {
     let mut t_pos = [0.0; LANES];
     let (mut avx, mut avy, mut aw) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
     let (mut bvx, mut bvy, mut bw) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
@@ -590,9 +611,11 @@ fn sweep_batch(b: &mut Batch, vel: &mut [Vel], lanes: &mut [Sweep; LANES]) {
         bvx[i] += b.mb[i] * px;
         bvy[i] += b.mb[i] * py;
         bw[i] += b.ib[i] * (d * b.rtb[i]);
-        lanes[i].max = lanes[i].max.max(d.abs());
-        lanes[i].sum_sq += d * d;
-        t_pos[i] = d.max(0.0);
+        lanes.max[i] = lanes.max[i].max(d.abs());
+        lanes.sum_sq[i] += d * d;
+        if CONTACT {
+            t_pos[i] = d.max(0.0);
+        }
     }
     // Normal rows: `normal_velocity`, projection, then `apply_normal`.
     for i in 0..LANES {
@@ -608,9 +631,11 @@ fn sweep_batch(b: &mut Batch, vel: &mut [Vel], lanes: &mut [Sweep; LANES]) {
         bvx[i] += b.mb[i] * px;
         bvy[i] += b.mb[i] * py;
         bw[i] += b.ib[i] * (d * b.rnb[i]);
-        lanes[i].max = lanes[i].max.max(d.abs());
-        lanes[i].sum_sq += d * d;
-        lanes[i].contact_sq = lanes[i].contact_sq.max(d * d + t_pos[i] * t_pos[i]);
+        lanes.max[i] = lanes.max[i].max(d.abs());
+        lanes.sum_sq[i] += d * d;
+        if CONTACT {
+            lanes.contact_sq[i] = lanes.contact_sq[i].max(d * d + t_pos[i] * t_pos[i]);
+        }
     }
     for i in 0..LANES {
         if movable(b.ma[i], b.ia[i]) {
@@ -777,7 +802,11 @@ impl VelocitySolver for PgsSolver {
             .reserve(settings.max_iterations.min(4096) as usize);
         let mut it = 0;
         while it < settings.max_iterations {
-            let sweep = self.iterate();
+            let sweep = if settings.norm == ResidualNorm::Contact {
+                self.iterate::<true>()
+            } else {
+                self.iterate::<false>()
+            };
             let (max_d, l2) = (sweep.max, sweep.sum_sq.sqrt());
             it += 1;
             report.residual_inf.push(max_d);
