@@ -277,8 +277,7 @@ pub struct PositionReport {
     pub iterations: u32,
     /// Smallest separation seen in the last iteration (negative = penetration).
     pub min_separation: Real,
-    /// Largest correction applied in the last iteration (m), or the largest position impulse
-    /// `−C/K` with [`PositionSettings::stop_on_impulse`].
+    /// Largest correction applied in the last iteration (m).
     pub max_correction: Real,
 }
 

@@ -93,11 +93,8 @@ impl PositionSolver for PgsPositionSolver {
             report.iterations = it + 1;
             report.min_separation = min_sep;
             report.max_correction = max_corr;
-            if settings.stop_on_impulse {
-                max_corr = max_imp;
-            }
             let small = if settings.stop_on_impulse {
-                max_corr <= settings.tolerance
+                max_imp <= settings.tolerance
             } else {
                 max_corr < settings.tolerance
             };
