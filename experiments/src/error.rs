@@ -44,6 +44,10 @@ pub enum ExperimentError {
         /// What the grid crate reported.
         reason: String,
     },
+    /// The caller's stop check answered true before the work finished
+    /// ([`crate::compare::run_experiment_until`]).
+    #[error("stopped before the comparison finished")]
+    Stopped,
     /// A configuration value out of range (`what` names the option and the value).
     #[error("{0}")]
     Invalid(String),

@@ -36,7 +36,7 @@ pub use output::{
     CURVES_COLUMNS, Outputs, STEPS_COLUMNS, SUMMARY_COLUMNS, curves_csv, steps_csv, summary_csv,
     summary_md, write_outputs,
 };
-pub use runner::{run_experiment, run_experiment_with};
+pub use runner::{run_experiment, run_experiment_until, run_experiment_with};
 pub use stats::{Curve, Summary, curves, median, summarize};
 
 /// The thesis's providers, the default of `--warm-starts`.
