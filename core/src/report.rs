@@ -68,7 +68,7 @@ pub struct StepReport {
     pub position_iterations: u32,
     /// Smallest separation after the position pass (0 without contacts).
     pub min_separation: Real,
-    /// Seconds spent in the warm-start provider.
+    /// Seconds spent in the warm-start provider (its `warm_start` and its `observe`).
     pub warm_start_seconds: Real,
     /// Seconds spent in the velocity solver.
     pub solve_seconds: Real,

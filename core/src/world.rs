@@ -505,6 +505,8 @@ impl World {
         report.solve_seconds += t0.elapsed().as_secs_f64();
         solved?;
 
+        // What a provider does after the solve is part of its cost.
+        let t0 = Instant::now();
         plugins.warm_start.observe(
             &ctx,
             &Observation {
@@ -514,6 +516,7 @@ impl World {
                 report: &s.report,
             },
         );
+        report.warm_start_seconds += t0.elapsed().as_secs_f64();
         report.add_island(&s.report, &s.warm, &s.impulses);
         for (p, imp) in s.point_source[k].iter().zip(&s.impulses) {
             s.solved[*p as usize] = *imp;

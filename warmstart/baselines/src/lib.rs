@@ -11,20 +11,36 @@
 //! | `random` | [`RandomWarmStart`] | normal U(0, 5), tangent U(−2, 2), seeded |
 //! | `bad` | [`ConstantWarmStart`] | (50, 50) everywhere |
 //! | `copy` | [`OracleWarmStart`] | this step's problem solved first, to 1e-6 |
+//! | `tail` | [`TailWarmStart`] | carried impulses plus the extrapolated rest of last step's solve |
+//! | `extrapolate` | [`ExtrapolatedWarmStart`] | λ_t + α (λ_t − λ_{t−1}) by contact id |
+//! | `krylov` | [`KrylovWarmStart`] | carried impulses plus a few conjugate-gradient steps on their active set |
+//! | `shock` | [`ShockWarmStart`] | normal loads propagated top-down, blended with the carried impulses |
+//! | `best` | [`BestOfWarmStart`] | the candidate start with the smallest one-sweep residual |
 //! | `copy2`, `copy0` | [`Rounded`]`<`[`OracleWarmStart`]`>` | `copy` rounded to 2 / 0 decimals |
 //!
 //! [`Rounded`] wraps any provider, so "how much precision does a prediction need" can be
 //! asked of every provider, not just the oracle.
 #![warn(missing_docs)]
 
+mod best;
 mod constant;
+mod extrapolate;
+mod krylov;
 mod oracle;
 mod random;
 mod registry;
 mod rounded;
+mod rows;
+mod shock;
+mod tail;
 
+pub use best::BestOfWarmStart;
 pub use constant::ConstantWarmStart;
-pub use oracle::{OracleConfig, OracleWarmStart};
+pub use extrapolate::ExtrapolatedWarmStart;
+pub use krylov::{KrylovConfig, KrylovWarmStart};
+pub use oracle::{OracleConfig, OracleOrder, OracleWarmStart};
 pub use random::{RandomConfig, RandomWarmStart};
 pub use registry::register;
 pub use rounded::Rounded;
+pub use shock::ShockWarmStart;
+pub use tail::{TailConfig, TailWarmStart};

@@ -2,9 +2,10 @@
 
 use deepcontact_core::Velocity;
 
+use deepcontact_core::rng::PortableRng;
 use deepcontact_core::{
-    Impulse, Real, ResidualNorm, SolveReport, SolverSettings, VelocitySolver, WarmStart,
-    WarmStartContext, WarmStartError,
+    ContactProblem, Impulse, Real, ResidualNorm, SolveReport, SolverSettings, VelocitySolver,
+    WarmStart, WarmStartContext, WarmStartError,
 };
 
 use deepcontact_core::SpecError;
@@ -20,6 +21,9 @@ pub struct OracleConfig {
     /// Norm of the oracle's stop rule (default ∞-norm; the thesis preset uses
     /// [`ResidualNorm::Contact`], the original's rule).
     pub norm: ResidualNorm,
+    /// Order of the island's manifolds in the oracle's own problem (default
+    /// [`OracleOrder::World`]).
+    pub order: OracleOrder,
 }
 
 impl Default for OracleConfig {
@@ -28,8 +32,29 @@ impl Default for OracleConfig {
             tolerance: 1e-6,
             max_iterations: 10_000,
             norm: ResidualNorm::Infinity,
+            order: OracleOrder::World,
         }
     }
+}
+
+/// Order of the manifolds in the problem the oracle solves.
+///
+/// The original thesis code's `CopyWorldModel` steps a fresh copy of the world: its contacts
+/// are created all at once, so Box2D v2.3 sweeps them in another order than the world, whose
+/// contacts were created one by one as the circles fell. A pile is statically indeterminate
+/// and the solve stops early (1e-4), so the two orders stop at different points of the
+/// solution set. [`Self::Shuffled`] reproduces that mismatch; [`Self::World`] makes the
+/// oracle's solve, with the world's solver, the world's own cold solve.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum OracleOrder {
+    /// The world's order (default).
+    #[default]
+    World,
+    /// The manifolds in reverse order.
+    Reversed,
+    /// A random permutation of the manifolds, drawn afresh for every solve from a generator
+    /// seeded with this seed when the world begins (deterministic per seed).
+    Shuffled(u64),
 }
 
 impl OracleConfig {
@@ -65,6 +90,11 @@ pub struct OracleWarmStart {
     impulses: Vec<Impulse>,
     velocities: Vec<Velocity>,
     report: SolveReport,
+    /// The reordered problem and, per point of it, the point of the world's problem.
+    reordered: ContactProblem,
+    source: Vec<usize>,
+    order: Vec<usize>,
+    rng: PortableRng,
 }
 
 impl std::fmt::Debug for OracleWarmStart {
@@ -93,6 +123,10 @@ impl OracleWarmStart {
             impulses: Vec::new(),
             velocities: Vec::new(),
             report: SolveReport::default(),
+            reordered: ContactProblem::new(),
+            source: Vec::new(),
+            order: Vec::new(),
+            rng: PortableRng::new(config.order.seed()),
         })
     }
 
@@ -106,6 +140,10 @@ impl OracleWarmStart {
             impulses: Vec::new(),
             velocities: Vec::new(),
             report: SolveReport::default(),
+            reordered: ContactProblem::new(),
+            source: Vec::new(),
+            order: Vec::new(),
+            rng: PortableRng::new(0),
         }
     }
 
@@ -117,6 +155,50 @@ impl OracleWarmStart {
     /// The report of the oracle's last solve (iterations, residuals, time).
     pub fn last_report(&self) -> &SolveReport {
         &self.report
+    }
+
+    /// Fills `self.reordered` with `problem`'s manifolds in the configured order and
+    /// `self.source` with each of its points' index in `problem`.
+    fn reorder(&mut self, problem: &ContactProblem) {
+        let n = problem.manifolds.len();
+        self.order.clear();
+        self.order.extend(0..n);
+        match self.config.order {
+            OracleOrder::World => {}
+            OracleOrder::Reversed => self.order.reverse(),
+            OracleOrder::Shuffled(_) => {
+                // Fisher–Yates.
+                for i in (1..n).rev() {
+                    let j = (self.rng.next_u64() % (i as u64 + 1)) as usize;
+                    self.order.swap(i, j);
+                }
+            }
+        }
+        let r = &mut self.reordered;
+        r.clear();
+        r.bodies.extend_from_slice(&problem.bodies);
+        self.source.clear();
+        for (k, &m) in self.order.iter().enumerate() {
+            let (s, e) = problem.manifolds[m];
+            let start = r.points.len() as u32;
+            for i in s as usize..e as usize {
+                let mut p = problem.points[i];
+                p.manifold = k as u32;
+                r.points.push(p);
+                self.source.push(i);
+            }
+            r.manifolds.push((start, r.points.len() as u32));
+        }
+    }
+}
+
+impl OracleOrder {
+    /// The generator seed of [`Self::Shuffled`] (0 otherwise).
+    fn seed(self) -> u64 {
+        match self {
+            Self::Shuffled(seed) => seed,
+            _ => 0,
+        }
     }
 }
 
@@ -143,16 +225,34 @@ impl WarmStart for OracleWarmStart {
         self.velocities
             .resize(problem.bodies.len(), Velocity::default());
         self.report.clear();
+        let world_order = self.config.order == OracleOrder::World;
+        if !world_order {
+            self.reorder(problem);
+        }
         self.solver
             .solve(
-                problem,
+                if world_order {
+                    problem
+                } else {
+                    &self.reordered
+                },
                 &self.settings,
                 &mut self.impulses,
                 &mut self.velocities,
                 &mut self.report,
             )
             .map_err(|e| WarmStartError::Provider(format!("oracle solve failed: {e}")))?;
-        out.copy_from_slice(&self.impulses);
+        if world_order {
+            out.copy_from_slice(&self.impulses);
+        } else {
+            for (&i, imp) in self.source.iter().zip(&self.impulses) {
+                out[i] = *imp;
+            }
+        }
         Ok(())
+    }
+
+    fn reset(&mut self) {
+        self.rng = PortableRng::new(self.config.order.seed());
     }
 }

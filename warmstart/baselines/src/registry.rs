@@ -4,7 +4,9 @@ use deepcontact_core::registry::{Params, ProviderInfo, Registry, SpecError};
 use deepcontact_core::{CarriedWarmStart, Impulse, ResidualNorm, ZeroWarmStart};
 
 use crate::{
-    ConstantWarmStart, OracleConfig, OracleWarmStart, RandomConfig, RandomWarmStart, Rounded,
+    BestOfWarmStart, ConstantWarmStart, ExtrapolatedWarmStart, KrylovConfig, KrylovWarmStart,
+    OracleConfig, OracleOrder, OracleWarmStart, RandomConfig, RandomWarmStart, Rounded,
+    ShockWarmStart, TailConfig, TailWarmStart,
 };
 
 /// Registers `none`, `builtin`, `random`, `bad`, `copy`, `copy2` and `copy0` (the oracles
@@ -26,6 +28,69 @@ pub fn register(registry: &mut Registry) {
         "builtin",
         "last step's impulses matched by contact id",
         |_, _| Ok(Box::new(CarriedWarmStart)),
+    );
+    registry.register_provider(
+        "tail",
+        "builtin plus the extrapolated rest of last step's solve (Aitken along the slow mode); \
+         sweeps=2, max_rate=0.995, extrapolate=true, factor=1, solver=pgs",
+        |p, r| {
+            let d = TailConfig::default();
+            let sweeps = p.u64("sweeps", u64::from(d.sweeps))?;
+            let config = TailConfig {
+                sweeps: u32::try_from(sweeps).map_err(|_| SpecError::InvalidParameter {
+                    spec: p.name().into(),
+                    param: "sweeps".into(),
+                    value: sweeps.to_string(),
+                    reason: "too large".into(),
+                })?,
+                max_rate: p.f64("max_rate", d.max_rate)?,
+                extrapolate: p.choice("extrapolate", &["true", "false"])? != Some("false"),
+                factor: p.f64("factor", d.factor)?,
+            };
+            let solver = r.build_solver(p.string("solver").unwrap_or("pgs"))?;
+            Ok(Box::new(TailWarmStart::new(solver, config)?))
+        },
+    );
+    registry.register_provider(
+        "extrapolate",
+        "carried impulses continued linearly in time, λ_t + alpha (λ_t − λ_{t−1}); alpha=0.5",
+        |p, _| Ok(Box::new(ExtrapolatedWarmStart::new(p.f64("alpha", 0.5)?)?)),
+    );
+    registry.register_provider(
+        "krylov",
+        "builtin plus conjugate-gradient steps on the carried active set; iterations=10, friction=true",
+        |p, _| {
+            let d = KrylovConfig::default();
+            let iterations = p.u64("iterations", u64::from(d.iterations))?;
+            let config = KrylovConfig {
+                iterations: u32::try_from(iterations).map_err(|_| SpecError::InvalidParameter {
+                    spec: p.name().into(),
+                    param: "iterations".into(),
+                    value: iterations.to_string(),
+                    reason: "too large".into(),
+                })?,
+                friction: p.choice("friction", &["true", "false"])? != Some("false"),
+            };
+            Ok(Box::new(KrylovWarmStart::new(config)?))
+        },
+    );
+    registry.register_provider(
+        "shock",
+        "normal loads propagated top-down through the contact graph, blended with the carried impulses; blend=0.5",
+        |p, _| Ok(Box::new(ShockWarmStart::new(p.f64("blend", 0.5)?)?)),
+    );
+    registry.register_provider(
+        "best",
+        "of the candidate starts, the one with the smallest one-sweep residual; of=builtin+extrapolate+tail+shock \
+         (registered provider names, default parameters)",
+        |p, r| {
+            let list = p.string("of").unwrap_or("builtin+extrapolate+tail+shock");
+            let candidates = list
+                .split('+')
+                .map(|name| r.build_provider(name))
+                .collect::<Result<Vec<_>, _>>()?;
+            Ok(Box::new(BestOfWarmStart::new(candidates)?))
+        },
     );
     registry.register_provider(
         "random",
@@ -59,7 +124,7 @@ pub fn register(registry: &mut Registry) {
         "copy",
         ProviderInfo::new(
             "oracle: solve this step's problem first and start from that; \
-             solver=pgs, tolerance=1e-6, max_iterations=10000, norm=inf|l2|contact, decimals= (round, as copy2/copy0)",
+             solver=pgs, tolerance=1e-6, max_iterations=10000, norm=inf|l2|contact, order=world|reversed|shuffled, order_seed=0, decimals= (round, as copy2/copy0)",
         )
         .oracle(),
         |p, r| {
@@ -75,7 +140,7 @@ pub fn register(registry: &mut Registry) {
     registry.register_provider(
         "copy2",
         ProviderInfo::new(
-            "copy rounded to 2 decimals; solver=pgs, tolerance=1e-6, max_iterations=10000, norm=inf|l2|contact",
+            "copy rounded to 2 decimals; solver=pgs, tolerance=1e-6, max_iterations=10000, norm=inf|l2|contact, order=world|reversed|shuffled, order_seed=0",
         )
         .oracle(),
         |p, r| Ok(Box::new(Rounded::new(build_oracle(p, r)?, 2)?)),
@@ -83,7 +148,7 @@ pub fn register(registry: &mut Registry) {
     registry.register_provider(
         "copy0",
         ProviderInfo::new(
-            "copy rounded to 0 decimals (normals clamped to >= 0); solver=pgs, tolerance=1e-6, max_iterations=10000, norm=inf|l2|contact",
+            "copy rounded to 0 decimals (normals clamped to >= 0); solver=pgs, tolerance=1e-6, max_iterations=10000, norm=inf|l2|contact, order=world|reversed|shuffled, order_seed=0",
         )
         .oracle(),
         |p, r| Ok(Box::new(Rounded::new(build_oracle(p, r)?, 0)?)),
@@ -101,7 +166,8 @@ fn decimals_u32(spec: &str, d: u64) -> Result<u32, SpecError> {
 
 /// The oracle's parameters: `solver` (a registry solver spec, default `pgs`), `tolerance`
 /// (default 1e-6, ≥ 0), `max_iterations` (default 10 000, 1 ..= u32::MAX) and `norm`
-/// (`inf` default, `l2`, `contact`: the original code's rule).
+/// (`inf` default, `l2`, `contact`: the original code's rule), `order` (`world` default,
+/// `reversed`, `shuffled`: see [`OracleOrder`]) and `order_seed` (default 0, for `shuffled`).
 fn build_oracle(p: &mut Params<'_>, registry: &Registry) -> Result<OracleWarmStart, SpecError> {
     let d = OracleConfig::default();
     let spec = p.name().to_string();
@@ -131,6 +197,12 @@ fn build_oracle(p: &mut Params<'_>, registry: &Registry) -> Result<OracleWarmSta
         Some("l2") => ResidualNorm::L2,
         Some(_) => ResidualNorm::Contact,
     };
+    let order_seed = p.u64("order_seed", 0)?;
+    let order = match p.choice("order", &["world", "reversed", "shuffled"])? {
+        None | Some("world") => OracleOrder::World,
+        Some("reversed") => OracleOrder::Reversed,
+        Some(_) => OracleOrder::Shuffled(order_seed),
+    };
     let solver = registry.build_solver(p.string("solver").unwrap_or("pgs"))?;
     OracleWarmStart::new(
         solver,
@@ -138,6 +210,7 @@ fn build_oracle(p: &mut Params<'_>, registry: &Registry) -> Result<OracleWarmSta
             tolerance,
             max_iterations,
             norm,
+            order,
         },
     )
 }

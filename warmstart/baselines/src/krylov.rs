@@ -1,0 +1,193 @@
+//! The `krylov` provider: carried impulses plus a conjugate-gradient correction of their
+//! smooth error.
+//!
+//! What PGS is slow at is the smooth part of the start's error: a load change that has to
+//! travel through the whole pile, one contact per sweep. Conjugate gradients on the same
+//! equations reach such modes in √κ rather than κ steps. The provider takes the carried
+//! impulses λc, assumes their active set (normal rows with λn > 0, friction rows of those
+//! points inside the cone), and runs `iterations` Jacobi-preconditioned CG steps on
+//! `W_AA Δ = −(J v(λc) − b)_A`, where `W = J M⁻¹ Jᵀ` is applied matrix-free (two passes over
+//! the points per step, no matrix), `v(λc)` are the velocities after λc and `b` the rows'
+//! targets (restitution bias for normal rows, 0 for friction rows). The start is
+//! `λc + Δ`, projected onto the friction cone; PGS then handles what the active set got
+//! wrong.
+
+use deepcontact_core::{
+    Impulse, Real, SpecError, Velocity, WarmStart, WarmStartContext, WarmStartError,
+};
+
+use crate::rows::{apply_jt, row, row_velocity, velocities_after};
+
+/// Parameters of [`KrylovWarmStart`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KrylovConfig {
+    /// Conjugate-gradient steps per island (default 10, ≥ 1).
+    pub iterations: u32,
+    /// Whether friction rows of sticking points join the system (default true).
+    pub friction: bool,
+}
+
+impl Default for KrylovConfig {
+    fn default() -> Self {
+        Self {
+            iterations: 10,
+            friction: true,
+        }
+    }
+}
+
+/// Carried impulses corrected by a few conjugate-gradient steps on their active set (see
+/// the module docs). Buffers are kept between calls.
+///
+/// ```
+/// use deepcontact_core::WarmStart;
+/// use deepcontact_warmstart::{KrylovConfig, KrylovWarmStart};
+///
+/// let provider = KrylovWarmStart::new(KrylovConfig::default()).unwrap();
+/// assert_eq!(provider.name(), "krylov");
+/// ```
+#[derive(Debug, Clone)]
+pub struct KrylovWarmStart {
+    config: KrylovConfig,
+    /// Per row (2 per point: normal, friction): whether it is in the active set.
+    active: Vec<bool>,
+    x: Vec<Real>,
+    r: Vec<Real>,
+    z: Vec<Real>,
+    p: Vec<Real>,
+    q: Vec<Real>,
+    dv: Vec<Velocity>,
+}
+
+impl KrylovWarmStart {
+    /// A provider under `config` (validated: at least one step).
+    pub fn new(config: KrylovConfig) -> Result<Self, SpecError> {
+        if config.iterations == 0 {
+            return Err(SpecError::InvalidParameter {
+                spec: "krylov".into(),
+                param: "iterations".into(),
+                value: "0".into(),
+                reason: "must be >= 1".into(),
+            });
+        }
+        Ok(Self {
+            config,
+            active: Vec::new(),
+            x: Vec::new(),
+            r: Vec::new(),
+            z: Vec::new(),
+            p: Vec::new(),
+            q: Vec::new(),
+            dv: Vec::new(),
+        })
+    }
+
+    /// The config.
+    pub fn config(&self) -> &KrylovConfig {
+        &self.config
+    }
+}
+
+impl WarmStart for KrylovWarmStart {
+    fn name(&self) -> &str {
+        "krylov"
+    }
+
+    fn warm_start(
+        &mut self,
+        ctx: &WarmStartContext<'_>,
+        out: &mut [Impulse],
+    ) -> Result<(), WarmStartError> {
+        let problem = ctx.problem;
+        let n = problem.points.len();
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = ctx.carried_or_zero(i);
+        }
+        if n == 0 {
+            return Ok(());
+        }
+        let rows = 2 * n;
+        self.active.clear();
+        self.active.extend((0..rows).map(|k| {
+            let (imp, p) = (out[k / 2], &problem.points[k / 2]);
+            let loaded = imp.normal > 0.0;
+            if k % 2 == 0 {
+                loaded
+            } else {
+                self.config.friction && loaded && imp.tangent.abs() < p.friction * imp.normal
+            }
+        }));
+        for buf in [
+            &mut self.x,
+            &mut self.r,
+            &mut self.z,
+            &mut self.p,
+            &mut self.q,
+        ] {
+            buf.clear();
+            buf.resize(rows, 0.0);
+        }
+        // Velocities after the carried impulses: free velocities + M⁻¹ Jᵀ λc.
+        velocities_after(problem, out, &mut self.x, &mut self.dv);
+        // r = −(J v − target) on the active rows; z = D⁻¹ r with D the rows' own W_kk.
+        let mut rz = 0.0;
+        for k in 0..rows {
+            if !self.active[k] {
+                continue;
+            }
+            let target = if k % 2 == 0 {
+                problem.points[k / 2].velocity_bias
+            } else {
+                0.0
+            };
+            self.r[k] = target - row_velocity(problem, k, &self.dv);
+            self.z[k] = row(problem, k).5 * self.r[k];
+            self.p[k] = self.z[k];
+            rz += self.r[k] * self.z[k];
+        }
+        self.x.fill(0.0);
+        for _ in 0..self.config.iterations {
+            if rz <= 0.0 {
+                break;
+            }
+            apply_jt(problem, &self.p, &mut self.dv);
+            let mut pq = 0.0;
+            for k in 0..rows {
+                self.q[k] = if self.active[k] {
+                    row_velocity(problem, k, &self.dv)
+                } else {
+                    0.0
+                };
+                pq += self.p[k] * self.q[k];
+            }
+            if pq <= 0.0 {
+                break;
+            }
+            let alpha = rz / pq;
+            let mut rz_new = 0.0;
+            for k in 0..rows {
+                if !self.active[k] {
+                    continue;
+                }
+                self.x[k] += alpha * self.p[k];
+                self.r[k] -= alpha * self.q[k];
+                self.z[k] = row(problem, k).5 * self.r[k];
+                rz_new += self.r[k] * self.z[k];
+            }
+            let beta = rz_new / rz;
+            rz = rz_new;
+            for k in 0..rows {
+                if self.active[k] {
+                    self.p[k] = self.z[k] + beta * self.p[k];
+                }
+            }
+        }
+        for (i, (o, p)) in out.iter_mut().zip(&problem.points).enumerate() {
+            let normal = (o.normal + self.x[2 * i]).max(0.0);
+            let bound = p.friction * normal;
+            let tangent = (o.tangent + self.x[2 * i + 1]).clamp(-bound, bound);
+            *o = Impulse::new(normal, tangent);
+        }
+        Ok(())
+    }
+}

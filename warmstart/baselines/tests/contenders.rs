@@ -1,0 +1,225 @@
+//! The classical contenders of issue 13 on a column of circles resting on the ground, whose
+//! answer is known: point k from the top carries the weight impulse of the k bodies above
+//! it and its own, `k m g dt`.
+
+use deepcontact_core::{
+    CarriedWarmStart, ContactId, ContactProblem, Impulse, Observation, PointDesc, ProblemBody,
+    SolveReport, SolverSettings, Vector, Velocity, VelocitySolver, WarmStart, WarmStartContext,
+    ZeroWarmStart,
+};
+use deepcontact_pgs::PgsSolver;
+use deepcontact_warmstart::{
+    BestOfWarmStart, ExtrapolatedWarmStart, KrylovConfig, KrylovWarmStart, ShockWarmStart,
+    TailConfig, TailWarmStart,
+};
+
+const DT: f64 = 0.01;
+const G: f64 = 9.81;
+const MASS: f64 = 0.785;
+
+/// `n` unit-diameter circles stacked on fixed ground, each falling at `g dt` before the solve.
+fn column(n: usize) -> ContactProblem {
+    let mut p = ContactProblem::new();
+    let ground = p.add_body(ProblemBody::fixed(Vector::new(0.0, -0.5)));
+    let mut below = ground;
+    for k in 0..n {
+        let y = 0.5 + k as f64;
+        let body = p.add_body(ProblemBody::dynamic(
+            Vector::new(0.0, y),
+            0.0,
+            Vector::new(0.0, -G * DT),
+            0.0,
+            MASS,
+            MASS / 8.0,
+        ));
+        p.begin_manifold();
+        let desc = PointDesc::new(
+            below,
+            body,
+            Vector::new(0.0, y - 0.5),
+            Vector::new(0.0, 1.0),
+        )
+        .id(ContactId {
+            body_a: below,
+            body_b: body,
+            ..ContactId::default()
+        })
+        .friction(0.5);
+        p.add_point(&desc).unwrap();
+        below = body;
+    }
+    p
+}
+
+/// The exact answer of [`column`]: the bottom point holds all n bodies.
+fn exact(n: usize) -> Vec<Impulse> {
+    (0..n)
+        .map(|k| Impulse::new((n - k) as f64 * MASS * G * DT, 0.0))
+        .collect()
+}
+
+fn solve(problem: &ContactProblem, start: &[Impulse]) -> (Vec<Impulse>, SolveReport) {
+    let mut lambda = start.to_vec();
+    let mut velocities = vec![Velocity::default(); problem.bodies.len()];
+    let mut report = SolveReport::default();
+    let settings = SolverSettings::default();
+    PgsSolver::new()
+        .solve(
+            problem,
+            &settings,
+            &mut lambda,
+            &mut velocities,
+            &mut report,
+        )
+        .unwrap();
+    (lambda, report)
+}
+
+fn start_of(
+    provider: &mut dyn WarmStart,
+    problem: &ContactProblem,
+    carried: &[Option<Impulse>],
+    step: u64,
+) -> Vec<Impulse> {
+    let ctx = WarmStartContext::new(problem, carried, step, DT);
+    let mut out = vec![Impulse::ZERO; problem.len()];
+    provider.warm_start(&ctx, &mut out).unwrap();
+    out
+}
+
+fn observe(
+    provider: &mut dyn WarmStart,
+    problem: &ContactProblem,
+    carried: &[Option<Impulse>],
+    step: u64,
+    start: &[Impulse],
+) -> Vec<Impulse> {
+    let (solved, report) = solve(problem, start);
+    let ctx = WarmStartContext::new(problem, carried, step, DT);
+    provider.observe(&ctx, &Observation::new(start, &solved, false, &report));
+    solved
+}
+
+#[test]
+fn shock_propagation_finds_the_loads_of_a_column_from_nothing() {
+    let problem = column(6);
+    let mut shock = ShockWarmStart::new(0.5).unwrap();
+    let start = start_of(&mut shock, &problem, &[None; 6], 0);
+    for (got, want) in start.iter().zip(exact(6)) {
+        assert!(
+            (got.normal - want.normal).abs() < 1e-12,
+            "{got:?} vs {want:?}"
+        );
+    }
+    // Already at the answer: PGS stops after its first sweep.
+    assert_eq!(solve(&problem, &start).1.iterations, 1);
+}
+
+#[test]
+fn shock_blends_with_carried_impulses() {
+    let problem = column(2);
+    let carried = [Some(Impulse::ZERO), Some(Impulse::ZERO)];
+    let start = start_of(
+        &mut ShockWarmStart::new(0.25).unwrap(),
+        &problem,
+        &carried,
+        1,
+    );
+    assert!((start[0].normal - 0.25 * exact(2)[0].normal).abs() < 1e-12);
+    assert!(ShockWarmStart::new(1.5).is_err());
+}
+
+#[test]
+fn extrapolate_continues_each_contact_linearly_and_alpha_zero_is_builtin() {
+    let problem = column(3);
+    let mut ex = ExtrapolatedWarmStart::new(0.5).unwrap();
+    let old = [Some(Impulse::new(0.01, 0.0)); 3];
+    let start = start_of(&mut ex, &problem, &old, 0);
+    let solved = observe(&mut ex, &problem, &old, 0, &start);
+    let carried: Vec<_> = solved.iter().map(|s| Some(*s)).collect();
+    let next = start_of(&mut ex, &problem, &carried, 1);
+    for ((n, s), o) in next.iter().zip(&solved).zip(old) {
+        let want = s.normal + 0.5 * (s.normal - o.unwrap().normal);
+        assert!((n.normal - want).abs() < 1e-15);
+    }
+    let mut zero_alpha = ExtrapolatedWarmStart::new(0.0).unwrap();
+    let start = start_of(&mut zero_alpha, &problem, &old, 0);
+    observe(&mut zero_alpha, &problem, &old, 0, &start);
+    assert_eq!(
+        start_of(&mut zero_alpha, &problem, &carried, 1),
+        start_of(&mut CarriedWarmStart, &problem, &carried, 1)
+    );
+    assert!(ExtrapolatedWarmStart::new(f64::NAN).is_err());
+}
+
+#[test]
+fn krylov_corrects_a_carried_start_that_misses_the_load() {
+    let problem = column(8);
+    let answer = exact(8);
+    // Loads from before two more bodies landed on top: the smooth error PGS is slow at.
+    let carried: Vec<_> = answer
+        .iter()
+        .map(|i| Some(Impulse::new(0.75 * i.normal, 0.0)))
+        .collect();
+    let mut krylov = KrylovWarmStart::new(KrylovConfig::default()).unwrap();
+    let start = start_of(&mut krylov, &problem, &carried, 1);
+    let from_carried = solve(
+        &problem,
+        &start_of(&mut CarriedWarmStart, &problem, &carried, 1),
+    );
+    let from_krylov = solve(&problem, &start);
+    for (got, want) in start.iter().zip(&answer) {
+        assert!(
+            (got.normal - want.normal).abs() < 1e-9,
+            "{got:?} vs {want:?}"
+        );
+    }
+    assert!(from_krylov.1.iterations < from_carried.1.iterations);
+    assert!(
+        KrylovWarmStart::new(KrylovConfig {
+            iterations: 0,
+            friction: true
+        })
+        .is_err()
+    );
+}
+
+#[test]
+fn best_of_keeps_the_candidate_with_the_smaller_residual() {
+    let problem = column(4);
+    let carried: Vec<_> = exact(4).into_iter().map(Some).collect();
+    let mut best =
+        BestOfWarmStart::new(vec![Box::new(ZeroWarmStart), Box::new(CarriedWarmStart)]).unwrap();
+    let start = start_of(&mut best, &problem, &carried, 1);
+    assert_eq!(start, exact(4));
+    let shares = best.diagnostics();
+    assert_eq!(shares[1], ("share_builtin".to_string(), 1.0));
+    assert!(BestOfWarmStart::new(Vec::new()).is_err());
+}
+
+#[test]
+fn tail_without_extrapolation_carries_the_converged_answer() {
+    let problem = column(5);
+    let config = TailConfig {
+        sweeps: 2000,
+        extrapolate: false,
+        ..TailConfig::default()
+    };
+    let mut tail = TailWarmStart::new(Box::new(PgsSolver::new()), config).unwrap();
+    let none = [None; 5];
+    let start = start_of(&mut tail, &problem, &none, 0);
+    observe(&mut tail, &problem, &none, 0, &start);
+    let carried = [Some(Impulse::ZERO); 5];
+    let next = start_of(&mut tail, &problem, &carried, 1);
+    for (got, want) in next.iter().zip(exact(5)) {
+        assert!(
+            (got.normal - want.normal).abs() < 1e-9,
+            "{got:?} vs {want:?}"
+        );
+    }
+    let bad = TailConfig {
+        max_rate: 1.0,
+        ..TailConfig::default()
+    };
+    assert!(TailWarmStart::new(Box::new(PgsSolver::new()), bad).is_err());
+}
