@@ -2,7 +2,9 @@
 //! stable under proptest, with random bytes and a few hand-written bad inputs, so that every
 //! `cargo test` exercises them. The real fuzzers are described in `fuzz/README.md`.
 
-use deepcontact_fuzz_harness::{Bytes, parse_specs, problem_from, small_problem, solve_problem};
+use deepcontact_fuzz_harness::{
+    Bytes, parse_specs, problem_from, scene_file, small_problem, solve_problem,
+};
 use proptest::prelude::*;
 
 proptest! {
@@ -25,15 +27,47 @@ proptest! {
 
     #[test]
     fn parse_specs_never_panics_on_known_names(
-        name in prop::sample::select(vec!["none", "builtin", "random", "bad", "copy", "copy2", "copy0", "pgs", "psor", "newton"]),
+        name in prop::sample::select(vec!["none", "builtin", "random", "bad", "copy", "copy2", "copy0", "pgs", "psor", "newton",
+            "extrapolate", "shock", "tail", "krylov", "best"]),
         key in prop::sample::select(vec!["seed", "normal_min", "normal_max", "tangent_max", "value", "normal", "tangent",
             "solver", "tolerance", "max_iterations", "decimals", "block", "order", "omega", "assembly",
-            "dense_threshold", "reg"]),
+            "dense_threshold", "reg", "alpha", "blend", "sweeps", "max_rate", "factor", "extrapolate",
+            "iterations", "friction", "of"]),
         value in prop::sample::select(vec!["0", "1", "-1", "nan", "inf", "-inf", "1e308", "-0", "2", "0.5",
-            "true", "false", "pgs", "psor", "newton", "copy", "dense", "sparse", "18446744073709551616", "4294967296"]),
+            "true", "false", "pgs", "psor", "newton", "copy", "dense", "sparse", "18446744073709551616", "4294967296",
+            "0.999", "builtin+none", "best", "nope+builtin", ""]),
     ) {
         parse_specs(format!("{name}:{key}={value}").as_bytes());
     }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 300, ..ProptestConfig::default() })]
+
+    #[test]
+    fn scene_file_never_panics_on_bytes(data in prop::collection::vec(any::<u8>(), 0..200)) {
+        scene_file(&data);
+    }
+
+    #[test]
+    fn scene_file_never_panics_on_near_valid_lines(
+        side in any::<u8>(),
+        lines in prop::collection::vec(
+            "(0|1|-1),(0|7|18446744073709551616),[0-9]{1,3},(1|2.5|3|1e-300|1e300|nan|inf|-2|0x1),(1|2|5e-324|14.9|-0),(0.5|1|0|-1|1e-9|inf)",
+            0..6,
+        ),
+    ) {
+        let mut data = vec![side];
+        data.extend(format!("world,seed,body_index,x,y,radius\n{}", lines.join("\n")).bytes());
+        scene_file(&data);
+    }
+}
+
+#[test]
+fn a_valid_scene_file_steps_through_the_harness() {
+    let mut data = vec![30u8];
+    data.extend(b"world,seed,body_index,x,y,radius\n0,7,0,2,1,0.5\n0,7,1,2,2.2,0.5\n");
+    scene_file(&data);
 }
 
 #[test]

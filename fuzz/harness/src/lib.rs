@@ -381,3 +381,50 @@ pub fn parse_specs(data: &[u8]) {
         }
     }
 }
+
+/// Bytes → scene-file text → [`deepcontact_core::scene_file::parse`], then
+/// [`deepcontact_core::scene_file::pile_from_circles`] for the first seed in the file (box
+/// side from the first byte: 0.5–128 m), then a world built from the scene and stepped three
+/// times with `builtin` and PGS. Parsing and checking give the circles or a typed
+/// `SceneFile` error; a scene that passes the checks builds and steps to finite bodies, or
+/// fails with a typed error; never a panic.
+pub fn scene_file(data: &[u8]) {
+    use deepcontact_core::scene_file::{parse, pile_from_circles};
+    use deepcontact_core::{CarriedWarmStart, CoreError, World, WorldSettings};
+
+    let side = 0.5 * Real::from(data.first().copied().unwrap_or(30).max(1));
+    let text = String::from_utf8_lossy(data.get(1..).unwrap_or_default());
+    let circles = match parse(&text, "fuzz.csv") {
+        Ok(c) => c,
+        Err(e) => {
+            assert!(matches!(e, CoreError::SceneFile { .. }), "{e:?}");
+            return;
+        }
+    };
+    assert!(!circles.is_empty(), "parse gave an empty scene");
+    let scene = match pile_from_circles(&circles, circles[0].seed, side, "fuzz.csv") {
+        Ok(s) => s,
+        Err(e) => {
+            assert!(matches!(e, CoreError::SceneFile { .. }), "{e:?}");
+            return;
+        }
+    };
+    let Ok(mut world) = World::with_bodies(WorldSettings::default(), &scene.bodies) else {
+        return;
+    };
+    let (mut solver, mut position) = (PgsSolver::new(), deepcontact_pgs::PgsPositionSolver::new());
+    for _ in 0..3 {
+        if world
+            .step(&mut CarriedWarmStart, &mut solver, &mut position)
+            .is_err()
+        {
+            return;
+        }
+        for b in world.bodies() {
+            assert!(
+                b.position.x.is_finite() && b.position.y.is_finite(),
+                "non-finite body after a step: {b:?}"
+            );
+        }
+    }
+}

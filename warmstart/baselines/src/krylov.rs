@@ -21,7 +21,7 @@ use crate::rows::{apply_jt, row, row_velocity, velocities_after};
 /// Parameters of [`KrylovWarmStart`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct KrylovConfig {
-    /// Conjugate-gradient steps per island (default 10, ≥ 1).
+    /// Conjugate-gradient steps per island (default 10, in 1..=[`KrylovWarmStart::MAX_ITERATIONS`]).
     pub iterations: u32,
     /// Whether friction rows of sticking points join the system (default true).
     pub friction: bool,
@@ -60,14 +60,17 @@ pub struct KrylovWarmStart {
 }
 
 impl KrylovWarmStart {
-    /// A provider under `config` (validated: at least one step).
+    /// Most conjugate-gradient steps per island (each costs about two PGS iterations).
+    pub const MAX_ITERATIONS: u32 = 10_000;
+
+    /// A provider under `config` (validated: 1 to `MAX_ITERATIONS` steps).
     pub fn new(config: KrylovConfig) -> Result<Self, SpecError> {
-        if config.iterations == 0 {
+        if !(1..=Self::MAX_ITERATIONS).contains(&config.iterations) {
             return Err(SpecError::InvalidParameter {
                 spec: "krylov".into(),
                 param: "iterations".into(),
-                value: "0".into(),
-                reason: "must be >= 1".into(),
+                value: config.iterations.to_string(),
+                reason: "must be in 1..=10000".into(),
             });
         }
         Ok(Self {

@@ -19,7 +19,7 @@ use deepcontact_core::{
 /// Parameters of [`TailWarmStart`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TailConfig {
-    /// Sweeps run after each solve, from its answer (default 2, ≥ 1).
+    /// Sweeps run after each solve, from its answer (default 2, in 1..=[`TailWarmStart::MAX_SWEEPS`]).
     pub sweeps: u32,
     /// Largest rate ρ trusted in the extrapolation (default 0.995: a gain of at most 199
     /// times the last increment; in [0, 1)).
@@ -80,8 +80,11 @@ impl std::fmt::Debug for TailWarmStart {
 }
 
 impl TailWarmStart {
+    /// Most sweeps per solve (each costs about one PGS iteration of the island).
+    pub const MAX_SWEEPS: u32 = 10_000;
+
     /// A provider sweeping with `solver` (one iteration per call) under `config`
-    /// (validated: `sweeps ≥ 1`, `0 ≤ max_rate < 1`).
+    /// (validated: `1 ≤ sweeps ≤ MAX_SWEEPS`, `0 ≤ max_rate < 1`, `factor` finite).
     pub fn new(solver: Box<dyn VelocitySolver>, config: TailConfig) -> Result<Self, SpecError> {
         let invalid = |param: &str, value: String, reason: &str| SpecError::InvalidParameter {
             spec: "tail".into(),
@@ -89,8 +92,19 @@ impl TailWarmStart {
             value,
             reason: reason.into(),
         };
-        if config.sweeps == 0 {
-            return Err(invalid("sweeps", "0".into(), "must be >= 1"));
+        if !(1..=Self::MAX_SWEEPS).contains(&config.sweeps) {
+            return Err(invalid(
+                "sweeps",
+                config.sweeps.to_string(),
+                "must be in 1..=10000",
+            ));
+        }
+        if !config.factor.is_finite() {
+            return Err(invalid(
+                "factor",
+                config.factor.to_string(),
+                "must be finite",
+            ));
         }
         if !(0.0..1.0).contains(&config.max_rate) {
             return Err(invalid(

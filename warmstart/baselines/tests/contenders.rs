@@ -222,4 +222,9 @@ fn tail_without_extrapolation_carries_the_converged_answer() {
         ..TailConfig::default()
     };
     assert!(TailWarmStart::new(Box::new(PgsSolver::new()), bad).is_err());
+    let endless = TailConfig {
+        sweeps: 4_000_000_000,
+        ..TailConfig::default()
+    };
+    assert!(TailWarmStart::new(Box::new(PgsSolver::new()), endless).is_err());
 }
