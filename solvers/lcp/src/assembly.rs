@@ -73,6 +73,11 @@ pub(crate) struct JacRow {
     pub(crate) jb: [Real; 3],
 }
 
+/// Whether a body with these inverse masses moves.
+fn movable(m: &[Real; 3]) -> bool {
+    m.iter().any(|&v| v != 0.0)
+}
+
 #[inline(always)]
 fn dot3(x: &[Real; 3], m: &[Real; 3], y: &[Real; 3]) -> Real {
     x[0] * m[0] * y[0] + x[1] * m[1] * y[1] + x[2] * m[2] * y[2]
@@ -166,7 +171,23 @@ impl Delassus {
         self.rows = rows;
         self.bodies = nb;
         self.dense = dense;
+        self.load_bodies(problem);
+        self.jacobian_rows(problem)?;
+        if dense {
+            self.assemble_dense()
+        } else {
+            self.assemble_sparse()
+        }
+        self.diag.clear();
+        for i in 0..rows {
+            let d = self.entry(i, i);
+            self.diag.push(d);
+        }
+        self.check_finite()
+    }
 
+    /// Inverse masses and free velocities of the bodies.
+    fn load_bodies(&mut self, problem: &ContactProblem) {
         self.inv_mass.clear();
         self.v_free.clear();
         for b in &problem.bodies {
@@ -174,6 +195,12 @@ impl Delassus {
             self.v_free
                 .push([b.linear_velocity.x, b.linear_velocity.y, b.angular_velocity]);
         }
+    }
+
+    /// The rows of `J` (normal, then tangent, per point), `q`, the effective masses and the
+    /// friction coefficients.
+    fn jacobian_rows(&mut self, problem: &ContactProblem) -> Result<(), LcpError> {
+        let nb = problem.bodies.len();
         self.jac.clear();
         self.q.clear();
         self.m_eff.clear();
@@ -186,20 +213,18 @@ impl Delassus {
                     )),
                 ));
             }
-            let n = p.normal;
-            let t = p.tangent();
-            let (a, b) = (p.body_a, p.body_b);
+            let (n, t) = (p.normal, p.tangent());
             for (d, bias, mass) in [
                 (n, p.velocity_bias, p.normal_mass),
                 (t, 0.0, p.tangent_mass),
             ] {
                 let row = JacRow {
-                    a,
-                    b,
+                    a: p.body_a,
+                    b: p.body_b,
                     ja: [-d.x, -d.y, -cross(&p.r_a, &d)],
                     jb: [d.x, d.y, cross(&p.r_b, &d)],
                 };
-                let (va, vb) = (&self.v_free[a as usize], &self.v_free[b as usize]);
+                let (va, vb) = (&self.v_free[row.a as usize], &self.v_free[row.b as usize]);
                 let jv = row.ja[0] * va[0]
                     + row.ja[1] * va[1]
                     + row.ja[2] * va[2]
@@ -212,47 +237,35 @@ impl Delassus {
             }
             self.mu.push(p.friction);
         }
-        if dense {
-            self.assemble_dense()
-        } else {
-            self.assemble_sparse()
-        }
-        self.diag.clear();
-        for i in 0..rows {
-            let d = self.entry(i, i);
-            self.diag.push(d);
-        }
+        Ok(())
+    }
+
+    /// Fails on the first non-finite entry of `q`, the effective masses or `W`.
+    fn check_finite(&self) -> Result<(), LcpError> {
+        let non_finite = |what, row| LcpError::NonFinite {
+            what,
+            row,
+            iteration: 0,
+        };
         if let Some(row) = self.q.iter().position(|v| !v.is_finite()) {
-            return Err(LcpError::NonFinite {
-                what: "free velocity q",
-                row,
-                iteration: 0,
-            });
+            return Err(non_finite("free velocity q", row));
         }
         if let Some(row) = self.m_eff.iter().position(|v| !v.is_finite()) {
-            return Err(LcpError::NonFinite {
-                what: "effective mass",
-                row,
-                iteration: 0,
-            });
+            return Err(non_finite("effective mass", row));
         }
         let bad = if self.dense {
-            (0..rows).find(|&j| self.w_dense.col_as_slice(j).iter().any(|v| !v.is_finite()))
+            (0..self.rows).find(|&j| self.w_dense.col_as_slice(j).iter().any(|v| !v.is_finite()))
         } else {
-            (0..rows).find(|&j| {
+            (0..self.rows).find(|&j| {
                 self.values[self.col_ptr[j]..self.col_ptr[j + 1]]
                     .iter()
                     .any(|v| !v.is_finite())
             })
         };
-        if let Some(row) = bad {
-            return Err(LcpError::NonFinite {
-                what: "Delassus entry",
-                row,
-                iteration: 0,
-            });
+        match bad {
+            Some(row) => Err(non_finite("Delassus entry", row)),
+            None => Ok(()),
         }
-        Ok(())
     }
 
     /// Dense path: `W = (J M⁻¹) Jᵀ` with faer's matrix product.
@@ -291,10 +304,36 @@ impl Delassus {
     /// Sparse path: per point, accumulate the 2×2 blocks `J_i M_k⁻¹ J_jᵀ` over the dynamic
     /// bodies `k` it shares with every other point `j`.
     fn assemble_sparse(&mut self) {
+        self.body_adjacency();
+        let np = self.rows / 2;
+        self.mark.clear();
+        self.mark.resize(np, 0);
+        self.slot.clear();
+        self.slot.resize(np, 0);
+        self.col_ptr.clear();
+        self.row_idx.clear();
+        self.values.clear();
+        self.col_ptr.push(0);
+        for i in 0..np {
+            self.point_blocks(i);
+            for c in 0..2 {
+                for (j, blk) in &self.blocks {
+                    let j = *j as usize;
+                    self.row_idx.push(2 * j);
+                    self.values.push(blk[2 * c]);
+                    self.row_idx.push(2 * j + 1);
+                    self.values.push(blk[2 * c + 1]);
+                }
+                self.col_ptr.push(self.row_idx.len());
+            }
+        }
+    }
+
+    /// Body → (point, side) adjacency of the dynamic bodies: `adj[adj_ptr[k]..adj_ptr[k + 1]]`
+    /// holds `2 × point + side` for every point touching body `k`.
+    fn body_adjacency(&mut self) {
         let np = self.rows / 2;
         let nb = self.bodies;
-        let movable = |m: &[Real; 3]| m.iter().any(|&v| v != 0.0);
-        // Body -> (point, side) adjacency, dynamic bodies only.
         self.adj_ptr.clear();
         self.adj_ptr.resize(nb + 1, 0);
         for p in 0..np {
@@ -322,60 +361,44 @@ impl Delassus {
                 }
             }
         }
-        self.mark.clear();
-        self.mark.resize(np, 0);
-        self.slot.clear();
-        self.slot.resize(np, 0);
-        self.col_ptr.clear();
-        self.row_idx.clear();
-        self.values.clear();
-        self.col_ptr.push(0);
+    }
+
+    /// `blocks`: the 2×2 blocks of block column `i` (its normal and tangent columns), one per
+    /// point sharing a dynamic body with point `i` and for `i` itself, sorted by point.
+    fn point_blocks(&mut self, i: usize) {
         let side_of = |r: &JacRow, side: u32| if side == 0 { (r.a, r.ja) } else { (r.b, r.jb) };
-        for i in 0..np {
-            self.blocks.clear();
-            let stamp = i + 1;
-            // The point itself is always present (even between two immovable bodies).
-            self.mark[i] = stamp;
-            self.slot[i] = 0;
-            self.blocks.push((i as u32, [0.0; 4]));
-            for side_i in 0..2u32 {
-                let (body, jn_i) = side_of(&self.jac[2 * i], side_i);
-                let (_, jt_i) = side_of(&self.jac[2 * i + 1], side_i);
-                let m = self.inv_mass[body as usize];
-                if !movable(&m) {
-                    continue;
-                }
-                for &code in &self.adj[self.adj_ptr[body as usize]..self.adj_ptr[body as usize + 1]]
-                {
-                    let (j, side_j) = ((code / 2) as usize, code % 2);
-                    let (body_j, jn_j) = side_of(&self.jac[2 * j], side_j);
-                    debug_assert_eq!(body_j, body);
-                    let (_, jt_j) = side_of(&self.jac[2 * j + 1], side_j);
-                    if self.mark[j] != stamp {
-                        self.mark[j] = stamp;
-                        self.slot[j] = self.blocks.len();
-                        self.blocks.push((j as u32, [0.0; 4]));
-                    }
-                    let blk = &mut self.blocks[self.slot[j]].1;
-                    // Column 2i (normal of i): rows 2j, 2j+1; column 2i+1 (tangent of i).
-                    blk[0] += dot3(&jn_j, &m, &jn_i);
-                    blk[1] += dot3(&jt_j, &m, &jn_i);
-                    blk[2] += dot3(&jn_j, &m, &jt_i);
-                    blk[3] += dot3(&jt_j, &m, &jt_i);
-                }
+        self.blocks.clear();
+        let stamp = i + 1;
+        // The point itself is always present (even between two immovable bodies).
+        self.mark[i] = stamp;
+        self.slot[i] = 0;
+        self.blocks.push((i as u32, [0.0; 4]));
+        for side_i in 0..2u32 {
+            let (body, jn_i) = side_of(&self.jac[2 * i], side_i);
+            let (_, jt_i) = side_of(&self.jac[2 * i + 1], side_i);
+            let m = self.inv_mass[body as usize];
+            if !movable(&m) {
+                continue;
             }
-            self.blocks.sort_unstable_by_key(|b| b.0);
-            for c in 0..2 {
-                for (j, blk) in &self.blocks {
-                    let j = *j as usize;
-                    self.row_idx.push(2 * j);
-                    self.values.push(blk[2 * c]);
-                    self.row_idx.push(2 * j + 1);
-                    self.values.push(blk[2 * c + 1]);
+            for &code in &self.adj[self.adj_ptr[body as usize]..self.adj_ptr[body as usize + 1]] {
+                let (j, side_j) = ((code / 2) as usize, code % 2);
+                let (body_j, jn_j) = side_of(&self.jac[2 * j], side_j);
+                debug_assert_eq!(body_j, body);
+                let (_, jt_j) = side_of(&self.jac[2 * j + 1], side_j);
+                if self.mark[j] != stamp {
+                    self.mark[j] = stamp;
+                    self.slot[j] = self.blocks.len();
+                    self.blocks.push((j as u32, [0.0; 4]));
                 }
-                self.col_ptr.push(self.row_idx.len());
+                let blk = &mut self.blocks[self.slot[j]].1;
+                // Column 2i (normal of i): rows 2j, 2j+1; column 2i+1 (tangent of i).
+                blk[0] += dot3(&jn_j, &m, &jn_i);
+                blk[1] += dot3(&jt_j, &m, &jn_i);
+                blk[2] += dot3(&jn_j, &m, &jt_i);
+                blk[3] += dot3(&jt_j, &m, &jt_i);
             }
         }
+        self.blocks.sort_unstable_by_key(|b| b.0);
     }
 
     /// Rows of the system (2 per point).
@@ -468,6 +491,41 @@ impl Delassus {
         }
     }
 
+    /// Calls `f(i)` for every point `i` whose 2×2 block in block column `j` is stored (sparse)
+    /// or non-zero (dense), in ascending order; the diagonal block always.
+    pub(crate) fn for_each_block_in_column(&self, j: usize, mut f: impl FnMut(usize)) {
+        if self.dense {
+            let (c0, c1) = (
+                self.w_dense.col_as_slice(2 * j),
+                self.w_dense.col_as_slice(2 * j + 1),
+            );
+            for i in 0..self.points() {
+                let nonzero = [c0, c1]
+                    .iter()
+                    .any(|c| c[2 * i] != 0.0 || c[2 * i + 1] != 0.0);
+                if nonzero || i == j {
+                    f(i);
+                }
+            }
+        } else {
+            // Blocks are stored whole: the even rows of column 2j name them.
+            for &r in self.sparse_col(2 * j).0.iter().step_by(2) {
+                f(r / 2);
+            }
+        }
+    }
+
+    /// The 2×2 block of `W` of points `i` (rows) and `j` (columns), row-major.
+    pub(crate) fn block(&self, i: usize, j: usize) -> [Real; 4] {
+        let (r, c) = (2 * i, 2 * j);
+        [
+            self.entry(r, c),
+            self.entry(r, c + 1),
+            self.entry(r + 1, c),
+            self.entry(r + 1, c + 1),
+        ]
+    }
+
     /// `W` as a dense faer matrix (for tests and small problems).
     pub fn to_dense(&self) -> Mat<Real> {
         if self.dense {
@@ -528,6 +586,23 @@ impl Delassus {
                     for (&r, v) in rows.iter().zip(vals) {
                         out[r] += v * xj;
                     }
+                }
+            }
+        }
+    }
+
+    /// `out += c × (column j of W)`.
+    #[inline]
+    pub(crate) fn add_column(&self, j: usize, c: Real, out: &mut [Real]) {
+        if self.dense {
+            for (o, &v) in out.iter_mut().zip(self.w_dense.col_as_slice(j)) {
+                *o += c * v;
+            }
+        } else {
+            let (rows, vals) = self.sparse_col(j);
+            for (&r, &v) in rows.iter().zip(vals) {
+                if let Some(o) = out.get_mut(r) {
+                    *o += c * v;
                 }
             }
         }

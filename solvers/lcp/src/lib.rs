@@ -11,7 +11,8 @@
 //!   impulses as `PgsSolver` with its block solver off: a cross-check of both.
 //! * [`NewtonSolver`] (`"newton"`) — semismooth Newton on the natural map
 //!   `λ − proj(λ − m (Wλ + q))` with the friction bounds `±μλn` coupled into the
-//!   generalised Jacobian, faer's LU (dense or sparse) with a growing regularisation for
+//!   generalised Jacobian, a sparse LU on 2×2 point blocks (static pivots, fill-reducing
+//!   order and update lists worked out once per solve) with a growing regularisation for
 //!   redundant contacts, and a projected Armijo line search that falls back to one PGS
 //!   sweep; it starts from the warm start like every solver here.
 //! * [`solve_exact`] — enumeration of contact states for a few points, the oracle of the
@@ -25,6 +26,7 @@
 #![warn(missing_docs)]
 
 mod assembly;
+mod block_lu;
 mod error;
 mod exact;
 mod newton;

@@ -6,21 +6,13 @@ use deepcontact_core::math::{Real, Velocity};
 use deepcontact_core::{
     ContactProblem, CoreError, Impulse, SolveReport, SolverSettings, VelocitySolver,
 };
-#[cfg(feature = "sparse")]
-use faer::Conj;
-use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
-use faer::linalg::lu::partial_pivoting::{factor as dense_lu, solve as dense_solve};
-#[cfg(feature = "sparse")]
-use faer::sparse::SparseColMatRef;
-#[cfg(feature = "sparse")]
-use faer::sparse::linalg::lu::{NumericLu, SymbolicLu, factorize_symbolic_lu};
-use faer::{Mat, MatMut, Par};
 
 use crate::LcpError;
 use crate::assembly::{
     AssemblyMode, DEFAULT_DENSE_THRESHOLD, Delassus, impulses_to_rows, rows_to_impulses, sor_sweep,
     sweep_order,
 };
+use crate::block_lu::BlockLu;
 use deepcontact_core::solver::begin_solve;
 
 /// Relative regularisation a Newton direction is recomputed with (at least) after its line
@@ -124,7 +116,8 @@ impl NewtonSettings {
 pub struct NewtonStats {
     /// Newton iterations (same as the report's `iterations`).
     pub iterations: u32,
-    /// LU factorisations (more than the iterations when ε had to grow).
+    /// Factorisations of the Newton matrix (more than the iterations when ε had to grow or
+    /// the coupled step failed).
     pub factorizations: u32,
     /// Backtracking steps taken by the line search, in all.
     pub backtracks: u32,
@@ -134,7 +127,7 @@ pub struct NewtonStats {
     pub fallback_sweeps: u32,
     /// Largest relative regularisation used.
     pub max_regularization: Real,
-    /// Whether the Newton matrix was dense.
+    /// Whether `W` was assembled dense (the Newton matrix is factorised sparse either way).
     pub dense: bool,
 }
 
@@ -152,30 +145,6 @@ enum RowState {
     Lower,
 }
 
-/// Scratch memory for faer's factorisations (a `MemBuffer` is not `Debug`).
-struct Scratch(MemBuffer);
-
-impl std::fmt::Debug for Scratch {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "Scratch({} bytes)", self.0.len())
-    }
-}
-
-impl Scratch {
-    fn reserve(&mut self, req: StackReq) -> Result<(), LcpError> {
-        if !MemStack::new(&mut self.0).can_hold(req) {
-            self.0 = MemBuffer::try_new(req).map_err(|_| LcpError::Factorization {
-                rows: 0,
-                reason: format!(
-                    "cannot allocate {} bytes of scratch",
-                    req.unaligned_bytes_required()
-                ),
-            })?;
-        }
-        Ok(())
-    }
-}
-
 /// Semismooth Newton on the natural map of the frictional contact problem, started from the
 /// warm start.
 ///
@@ -190,11 +159,14 @@ impl Scratch {
 ///    take the row of `W` (diagonal × (1 + ε)), bound rows an identity row, friction-bound
 ///    rows also the `∓μ` coupling to their normal (so sliding friction follows the normal
 ///    impulse within the step: a true Newton step for `H`, not a fixed point on the friction
-///    bounds) — with faer's partial-pivoting LU, dense or sparse (the sparse symbolic
-///    analysis is done once per solve: `K` keeps the pattern of `W`); ε grows ×100 while the
-///    solution is not finite or inaccurate;
+///    bounds) — with a sparse LU on 2×2 point blocks with static pivots: `K` keeps the
+///    block pattern of `W`, so its fill-reducing order (AMD), filled pattern and update
+///    lists are worked out once per solve and each factorisation is a pass over them (no
+///    pivot search, no allocation); ε grows ×100 while the solution is not finite or
+///    inaccurate (residual checked against 1e-8 relative);
 /// 3. line search on `θ = ½‖H‖²` along `λ ← proj(λ + αΔ)` (Armijo): α = 1, β, β², …, then
-///    the first breakpoint where a normal impulse reaches zero;
+///    the first breakpoint where a normal impulse reaches zero (each trial's velocities
+///    updated from `W Δ` and the columns of the projected rows; recomputed once accepted);
 /// 4. if no step is accepted: the same with the friction bounds lagged (no coupling, the
 ///    symmetric system of a fixed point on the bounds), then with ε × 100 (a shorter
 ///    Levenberg–Marquardt step), and at the largest ε one projected Gauss-Seidel sweep
@@ -225,16 +197,7 @@ pub struct NewtonSolver {
     trial: Vec<Real>,
     w_trial: Vec<Real>,
     state: Vec<RowState>,
-    k_dense: Mat<Real>,
-    perm: Vec<usize>,
-    perm_inv: Vec<usize>,
-    #[cfg(feature = "sparse")]
-    k_values: Vec<Real>,
-    #[cfg(feature = "sparse")]
-    symbolic: Option<SymbolicLu<usize>>,
-    #[cfg(feature = "sparse")]
-    numeric: NumericLu<usize, Real>,
-    mem: Scratch,
+    lu: BlockLu,
     stats: NewtonStats,
     /// Whether the current Newton matrix couples friction bounds to their normals.
     coupled: bool,
@@ -268,16 +231,7 @@ impl NewtonSolver {
             trial: Vec::new(),
             w_trial: Vec::new(),
             state: Vec::new(),
-            k_dense: Mat::new(),
-            perm: Vec::new(),
-            perm_inv: Vec::new(),
-            #[cfg(feature = "sparse")]
-            k_values: Vec::new(),
-            #[cfg(feature = "sparse")]
-            symbolic: None,
-            #[cfg(feature = "sparse")]
-            numeric: NumericLu::new(),
-            mem: Scratch(MemBuffer::new(StackReq::EMPTY)),
+            lu: BlockLu::default(),
             stats: NewtonStats::default(),
             coupled: true,
         }
@@ -313,129 +267,28 @@ impl NewtonSolver {
             velocities,
             report,
         )?;
+        self.set_up(problem)?;
+        self.start_from(impulses)?;
+        report.iterations = self.iterate(settings, report)?;
+        self.stats.iterations = report.iterations;
+        self.finish(impulses, velocities, report);
+        report.seconds = t0.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    /// Assembles the problem, sizes the buffers and analyses the Newton matrix's pattern.
+    fn set_up(&mut self, problem: &ContactProblem) -> Result<(), LcpError> {
         self.delassus.assemble(
             problem,
             self.settings.assembly,
             self.settings.dense_threshold,
         )?;
         sweep_order(problem, &mut self.order);
-        let n = self.delassus.rows();
         self.stats = NewtonStats {
             dense: self.delassus.is_dense(),
             ..NewtonStats::default()
         };
-        self.prepare(n)?;
-
-        impulses_to_rows(impulses, &mut self.prev);
-        if let Some(row) = self.prev.iter().position(|v| !v.is_finite()) {
-            return Err(LcpError::NonFinite {
-                what: "start impulse",
-                row,
-                iteration: 0,
-            });
-        }
-        self.x.clear();
-        self.x.extend_from_slice(&self.prev);
-        self.delassus.project(&mut self.x);
-        self.delassus.velocity_of(&self.x, &mut self.w);
-
-        let scale = self
-            .delassus
-            .diagonal()
-            .iter()
-            .fold(0.0, |m: Real, &v| m.max(v));
-        let scale = if scale > 0.0 { scale } else { 1.0 };
-        let base = self.settings.regularization;
-        let max_reg = self.settings.max_regularization;
-        let mut reg = base;
-        let mut it = 0;
-        while it < settings.max_iterations {
-            it += 1;
-            let theta = self.classify();
-            if theta > 0.0 {
-                let mut accepted = false;
-                'attempts: loop {
-                    // The exact generalised Jacobian first; if its step fails, the one with
-                    // the friction bounds lagged (held at ±μλn of this iterate).
-                    for coupled in [true, false] {
-                        self.coupled = coupled;
-                        reg = self.newton_direction(it, reg, scale)?;
-                        let ls = self.line_search(theta);
-                        if ls.is_some() {
-                            accepted = true;
-                            reg = (reg * 0.1).max(base);
-                            break 'attempts;
-                        }
-                    }
-                    if reg >= max_reg {
-                        break;
-                    }
-                    // Levenberg–Marquardt: a shorter, better-conditioned step.
-                    self.stats.retries += 1;
-                    reg = (reg * 100.0).max(RETRY_REGULARIZATION).min(max_reg);
-                }
-                if !accepted {
-                    self.stats.fallback_sweeps += 1;
-                    self.trial.copy_from_slice(&self.x);
-                    let (_, _, finite) =
-                        sor_sweep(&self.delassus, &self.order, &mut self.trial, 1.0);
-                    if !finite {
-                        let row = self.trial.iter().position(|v| !v.is_finite()).unwrap_or(0);
-                        return Err(LcpError::NonFinite {
-                            what: "impulse",
-                            row,
-                            iteration: it,
-                        });
-                    }
-                    self.delassus.velocity_of(&self.trial, &mut self.w_trial);
-                }
-                std::mem::swap(&mut self.x, &mut self.trial);
-                std::mem::swap(&mut self.w, &mut self.w_trial);
-            }
-            let mut max_d: Real = 0.0;
-            let mut sum_sq: Real = 0.0;
-            for (p, &x) in self.prev.iter_mut().zip(&self.x) {
-                let d = x - *p;
-                max_d = max_d.max(d.abs());
-                sum_sq += d * d;
-                *p = x;
-            }
-            let l2 = sum_sq.sqrt();
-            report.residual_inf.push(max_d);
-            report.residual_l2.push(l2);
-            if !(max_d.is_finite() && l2.is_finite()) {
-                let row = self.x.iter().position(|v| !v.is_finite()).unwrap_or(0);
-                return Err(LcpError::NonFinite {
-                    what: "impulse",
-                    row,
-                    iteration: it,
-                });
-            }
-            // A Newton iteration can make a tiny change without being converged (a short
-            // line-search step): the natural map must be small too.
-            let (h_inf, h_l2) = self.natural_norms();
-            if settings.converged(it, max_d, l2, Real::INFINITY)
-                && settings.converged(it, h_inf, h_l2, Real::INFINITY)
-            {
-                report.converged = true;
-                break;
-            }
-        }
-        report.iterations = it;
-        self.stats.iterations = it;
-        // Iterates are admissible except after a fallback sweep (friction clamped against the
-        // normal of its sweep): project onto the final cone, as PGS does.
-        self.delassus.project(&mut self.x);
-        self.delassus.velocity_of(&self.x, &mut self.w);
-        rows_to_impulses(&self.x, impulses);
-        self.delassus.body_velocities(&self.x, velocities);
-        report.natural_residual = self.delassus.natural_residual(&self.x, &self.w);
-        report.seconds = t0.elapsed().as_secs_f64();
-        Ok(())
-    }
-
-    /// Sizes the buffers, runs the sparse symbolic analysis and reserves faer's scratch.
-    fn prepare(&mut self, n: usize) -> Result<(), LcpError> {
+        let n = self.delassus.rows();
         for v in [
             &mut self.w,
             &mut self.h,
@@ -450,53 +303,164 @@ impl NewtonSolver {
         }
         self.state.clear();
         self.state.resize(n, RowState::Free);
-        let req = if self.delassus.is_dense() {
-            #[cfg(feature = "sparse")]
-            {
-                self.symbolic = None;
+        self.lu.analyse(&self.delassus)
+    }
+
+    /// The first iterate: the start projected onto the friction cone, and its velocities.
+    fn start_from(&mut self, impulses: &[Impulse]) -> Result<(), LcpError> {
+        impulses_to_rows(impulses, &mut self.prev);
+        if let Some(row) = self.prev.iter().position(|v| !v.is_finite()) {
+            return Err(LcpError::NonFinite {
+                what: "start impulse",
+                row,
+                iteration: 0,
+            });
+        }
+        self.x.clear();
+        self.x.extend_from_slice(&self.prev);
+        self.delassus.project(&mut self.x);
+        self.delassus.velocity_of(&self.x, &mut self.w);
+        Ok(())
+    }
+
+    /// Newton iterations until the stop rule holds or the cap; returns the iterations run.
+    fn iterate(
+        &mut self,
+        settings: &SolverSettings,
+        report: &mut SolveReport,
+    ) -> Result<u32, LcpError> {
+        let scale = self
+            .delassus
+            .diagonal()
+            .iter()
+            .fold(0.0, |m: Real, &v| m.max(v));
+        let scale = if scale > 0.0 { scale } else { 1.0 };
+        let mut reg = self.settings.regularization;
+        let mut it = 0;
+        while it < settings.max_iterations {
+            it += 1;
+            let theta = self.classify();
+            if theta > 0.0 {
+                reg = self.newton_step(it, reg, scale, theta)?;
             }
-            self.k_dense.resize_with(n, n, |_, _| 0.0);
-            self.perm.resize(n, 0);
-            self.perm_inv.resize(n, 0);
-            dense_lu::lu_in_place_scratch::<usize, Real>(n, n, Par::Seq, Default::default()).or(
-                dense_solve::solve_in_place_scratch::<usize, Real>(n, 1, Par::Seq),
-            )
-        } else {
-            self.prepare_sparse(n)?
-        };
-        self.mem.reserve(req)
+            if self.record_change(it, settings, report)? {
+                report.converged = true;
+                break;
+            }
+        }
+        Ok(it)
     }
 
-    /// The sparse symbolic analysis of `W`'s pattern and the scratch it needs.
-    #[cfg(feature = "sparse")]
-    fn prepare_sparse(&mut self, n: usize) -> Result<StackReq, LcpError> {
-        let symbolic = factorize_symbolic_lu(self.delassus.sparse_symbolic(), Default::default())
-            .map_err(|e| LcpError::Factorization {
-            rows: n,
-            reason: format!("{e:?}"),
-        })?;
-        let req = symbolic
-            .factorize_numeric_lu_scratch::<Real>(Par::Seq, Default::default())
-            .or(symbolic.solve_in_place_scratch::<Real>(1, Par::Seq));
-        self.symbolic = Some(symbolic);
-        // faer 0.24's simplicial LU keeps the column pointers of a larger previous
-        // matrix and then fails an assertion in the solve: start from fresh numeric
-        // storage for every new pattern (it is reused across the iterations of a solve).
-        self.numeric = NumericLu::new();
-        self.k_values.clear();
-        self.k_values.resize(self.delassus.nnz(), 0.0);
-        Ok(req)
+    /// One iteration's move from `x` at merit `theta`: the Newton step (coupled, then with
+    /// the friction bounds lagged, then with a growing regularisation), or a projected
+    /// Gauss-Seidel sweep when none is accepted. Returns the regularisation to go on with.
+    fn newton_step(
+        &mut self,
+        it: u32,
+        mut reg: Real,
+        scale: Real,
+        theta: Real,
+    ) -> Result<Real, LcpError> {
+        let (base, max_reg) = (
+            self.settings.regularization,
+            self.settings.max_regularization,
+        );
+        loop {
+            // The exact generalised Jacobian first; if its step fails, the one with the
+            // friction bounds lagged (held at ±μλn of this iterate).
+            for coupled in [true, false] {
+                self.coupled = coupled;
+                reg = self.newton_direction(it, reg, scale)?;
+                if self.line_search(theta).is_some() {
+                    self.accept_trial();
+                    // The line search updated the velocities; recompute them exactly, so
+                    // that no round-off accumulates over the iterations.
+                    self.delassus.velocity_of(&self.x, &mut self.w);
+                    return Ok((reg * 0.1).max(base));
+                }
+            }
+            if reg >= max_reg {
+                break;
+            }
+            // Levenberg–Marquardt: a shorter, better-conditioned step.
+            self.stats.retries += 1;
+            reg = (reg * 100.0).max(RETRY_REGULARIZATION).min(max_reg);
+        }
+        self.fallback_sweep(it)?;
+        self.accept_trial();
+        Ok(reg)
     }
 
-    /// Without the `sparse` feature a sparse-assembled system cannot be factorised.
-    #[cfg(not(feature = "sparse"))]
-    fn prepare_sparse(&mut self, n: usize) -> Result<StackReq, LcpError> {
-        Err(LcpError::Factorization {
-            rows: n,
-            reason: "sparse LU needs the `sparse` feature of deepcontact-lcp (on by default); \
-                     use assembly=dense"
-                .into(),
-        })
+    /// One projected Gauss-Seidel sweep from `x` into `trial` / `w_trial`.
+    fn fallback_sweep(&mut self, it: u32) -> Result<(), LcpError> {
+        self.stats.fallback_sweeps += 1;
+        self.trial.copy_from_slice(&self.x);
+        let (_, _, finite) = sor_sweep(&self.delassus, &self.order, &mut self.trial, 1.0);
+        if !finite {
+            let row = self.trial.iter().position(|v| !v.is_finite()).unwrap_or(0);
+            return Err(LcpError::NonFinite {
+                what: "impulse",
+                row,
+                iteration: it,
+            });
+        }
+        self.delassus.velocity_of(&self.trial, &mut self.w_trial);
+        Ok(())
+    }
+
+    /// Makes `trial` / `w_trial` the current iterate.
+    fn accept_trial(&mut self) {
+        std::mem::swap(&mut self.x, &mut self.trial);
+        std::mem::swap(&mut self.w, &mut self.w_trial);
+    }
+
+    /// Records iteration `it`'s change (`max |Δλ|`, `sqrt(Σ Δλ²)`) in the report and
+    /// returns whether the solve has converged: the change and the natural map both under
+    /// the tolerance (a short line-search step can make a tiny change far from a solution).
+    fn record_change(
+        &mut self,
+        it: u32,
+        settings: &SolverSettings,
+        report: &mut SolveReport,
+    ) -> Result<bool, LcpError> {
+        let mut max_d: Real = 0.0;
+        let mut sum_sq: Real = 0.0;
+        for (p, &x) in self.prev.iter_mut().zip(&self.x) {
+            let d = x - *p;
+            max_d = max_d.max(d.abs());
+            sum_sq += d * d;
+            *p = x;
+        }
+        let l2 = sum_sq.sqrt();
+        report.residual_inf.push(max_d);
+        report.residual_l2.push(l2);
+        if !(max_d.is_finite() && l2.is_finite()) {
+            let row = self.x.iter().position(|v| !v.is_finite()).unwrap_or(0);
+            return Err(LcpError::NonFinite {
+                what: "impulse",
+                row,
+                iteration: it,
+            });
+        }
+        let (h_inf, h_l2) = self.natural_norms();
+        Ok(settings.converged(it, max_d, l2, Real::INFINITY)
+            && settings.converged(it, h_inf, h_l2, Real::INFINITY))
+    }
+
+    /// The result: impulses projected onto the final cone (iterates are admissible except
+    /// after a fallback sweep, whose friction was clamped against the normal of its sweep),
+    /// the body velocities and the natural residual.
+    fn finish(
+        &mut self,
+        impulses: &mut [Impulse],
+        velocities: &mut [Velocity],
+        report: &mut SolveReport,
+    ) {
+        self.delassus.project(&mut self.x);
+        self.delassus.velocity_of(&self.x, &mut self.w);
+        rows_to_impulses(&self.x, impulses);
+        self.delassus.body_velocities(&self.x, velocities);
+        report.natural_residual = self.delassus.natural_residual(&self.x, &self.w);
     }
 
     /// Classifies the rows at the current iterate, fills `h = H(x)` and the Newton
@@ -547,22 +511,16 @@ impl NewtonSolver {
         mut reg: Real,
         scale: Real,
     ) -> Result<Real, LcpError> {
-        let n = self.delassus.rows();
         loop {
             self.stats.factorizations += 1;
             self.stats.max_regularization = self.stats.max_regularization.max(reg);
             self.d.copy_from_slice(&self.rhs);
-            let factored = if self.delassus.is_dense() {
-                self.solve_dense(reg, scale)
-            } else {
-                self.solve_sparse(reg, scale)
-            };
-            if factored && self.step_is_accurate(reg, scale) {
+            if self.factor_and_solve(reg, scale) && self.step_is_accurate(reg, scale) {
                 return Ok(reg);
             }
             if reg >= self.settings.max_regularization {
                 return Err(LcpError::Singular {
-                    rows: n,
+                    rows: self.delassus.rows(),
                     regularization: reg,
                     iteration,
                 });
@@ -580,111 +538,39 @@ impl NewtonSolver {
         w_ii + reg * w_ii.max(1e-12 * scale)
     }
 
-    /// The coefficient `K_rc` for a non-free row `r`.
+    /// The coupling `K_{r, r−1}` of a bound tangent row `r` to its normal: `∓μ` at `±μλn`
+    /// when the friction bounds are coupled, else 0 (also for normal rows).
     #[inline(always)]
-    fn bound_row_entry(&self, r: usize, c: usize) -> Real {
-        if r == c {
-            return 1.0;
-        }
+    fn coupling(&self, r: usize) -> Real {
         if !self.coupled {
             return 0.0;
         }
         let mu = self.delassus.friction()[r / 2];
         match self.state[r] {
-            RowState::Upper if c + 1 == r => -mu,
-            RowState::Lower if c + 1 == r => mu,
-            _ => 0.0,
+            RowState::Upper => -mu,
+            RowState::Lower => mu,
+            RowState::Free | RowState::Fixed => 0.0,
         }
     }
 
-    /// Dense LU of `K` (faer, partial pivoting, in place in a reused buffer).
-    fn solve_dense(&mut self, reg: Real, scale: Real) -> bool {
-        let n = self.delassus.rows();
-        let Some(w) = self.delassus.dense() else {
-            return false;
-        };
-        self.k_dense.as_mut().copy_from(w);
-        for r in 0..n {
+    /// Loads `K` into the block LU (rows of `W` with the regularised diagonal for free
+    /// rows, identity rows with their coupling for bound rows), factorises it and solves
+    /// for `d` in place; `false` when a pivot is singular.
+    fn factor_and_solve(&mut self, reg: Real, scale: Real) -> bool {
+        self.lu.load_w();
+        for r in 0..self.delassus.rows() {
             if self.state[r] == RowState::Free {
-                self.k_dense[(r, r)] = Self::regularized(w[(r, r)], reg, scale);
+                let w_ii = self.delassus.diagonal()[r];
+                self.lu.set_diagonal(r, Self::regularized(w_ii, reg, scale));
             } else {
-                for c in 0..n {
-                    let v = self.bound_row_entry(r, c);
-                    self.k_dense[(r, c)] = v;
-                }
+                let c = self.coupling(r);
+                self.lu.set_bound_row(r, c);
             }
         }
-        let stack = MemStack::new(&mut self.mem.0);
-        let (_, perm) = dense_lu::lu_in_place(
-            self.k_dense.as_mut(),
-            &mut self.perm,
-            &mut self.perm_inv,
-            Par::Seq,
-            &mut *stack,
-            Default::default(),
-        );
-        let lu = self.k_dense.as_ref();
-        dense_solve::solve_in_place(
-            lu,
-            lu,
-            perm,
-            MatMut::from_column_major_slice_mut(&mut self.d, n, 1),
-            Par::Seq,
-            stack,
-        );
-        true
-    }
-
-    /// Without the `sparse` feature there is no sparse factorisation (never reached: `prepare`
-    /// refuses sparse systems).
-    #[cfg(not(feature = "sparse"))]
-    fn solve_sparse(&mut self, _reg: Real, _scale: Real) -> bool {
-        false
-    }
-
-    /// Sparse LU of `K` (faer, same pattern as `W`; symbolic analysis done in `prepare`).
-    #[cfg(feature = "sparse")]
-    fn solve_sparse(&mut self, reg: Real, scale: Real) -> bool {
-        let n = self.delassus.rows();
-        let Some(w) = self.delassus.sparse() else {
+        if !self.lu.factor() {
             return false;
-        };
-        for c in 0..n {
-            let (s, e) = (w.symbolic().col_ptr()[c], w.symbolic().col_ptr()[c + 1]);
-            for k in s..e {
-                let r = w.symbolic().row_idx()[k];
-                let v = if self.state[r] == RowState::Free {
-                    if r == c {
-                        Self::regularized(w.val()[k], reg, scale)
-                    } else {
-                        w.val()[k]
-                    }
-                } else {
-                    self.bound_row_entry(r, c)
-                };
-                self.k_values[k] = v;
-            }
         }
-        let Some(symbolic) = self.symbolic.as_ref() else {
-            return false;
-        };
-        let k = SparseColMatRef::new(self.delassus.sparse_symbolic(), &self.k_values);
-        let stack = MemStack::new(&mut self.mem.0);
-        let Ok(lu) = symbolic.factorize_numeric_lu(
-            &mut self.numeric,
-            k,
-            Par::Seq,
-            &mut *stack,
-            Default::default(),
-        ) else {
-            return false;
-        };
-        lu.solve_in_place_with_conj(
-            Conj::No,
-            MatMut::from_column_major_slice_mut(&mut self.d, n, 1),
-            Par::Seq,
-            stack,
-        );
+        self.lu.solve(&mut self.d);
         true
     }
 
@@ -746,12 +632,31 @@ impl NewtonSolver {
     }
 
     /// Evaluates `proj(x + αd)` into `trial` / `w_trial`; true if it passes the Armijo test.
+    ///
+    /// The velocities are updated, not recomputed: `w + α W d` (`W d` is `kd`, from the
+    /// accuracy check of `d`) plus the columns of `W` of the rows the projection moved.
     fn try_step(&mut self, alpha: Real, theta: Real, sigma: Real) -> bool {
         for ((t, &x), &d) in self.trial.iter_mut().zip(&self.x).zip(&self.d) {
             *t = x + alpha * d;
         }
-        self.delassus.project(&mut self.trial);
-        self.delassus.velocity_of(&self.trial, &mut self.w_trial);
+        for ((wt, &w), &kd) in self.w_trial.iter_mut().zip(&self.w).zip(&self.kd) {
+            *wt = w + alpha * kd;
+        }
+        for p in 0..self.delassus.points() {
+            let (n, t) = (2 * p, 2 * p + 1);
+            let (un, ut) = (self.trial[n], self.trial[t]);
+            let pn = un.max(0.0);
+            let bound = self.delassus.friction()[p] * pn;
+            let pt = ut.max(-bound).min(bound);
+            self.trial[n] = pn;
+            self.trial[t] = pt;
+            if pn != un {
+                self.delassus.add_column(n, pn - un, &mut self.w_trial);
+            }
+            if pt != ut {
+                self.delassus.add_column(t, pt - ut, &mut self.w_trial);
+            }
+        }
         let theta_t = self.merit();
         theta_t.is_finite() && theta_t <= (1.0 - 2.0 * sigma * alpha) * theta
     }
