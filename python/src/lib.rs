@@ -1,0 +1,99 @@
+//! # deepcontact-python
+//!
+//! The native module `deepcontact._deepcontact` of the Python package `deepcontact` (built
+//! with maturin from `python/pyproject.toml`; the pure-Python package `python/deepcontact/`
+//! wraps it). It converts and calls the libraries, nothing more:
+//!
+//! * `World` — a scene of [`deepcontact_core::scene`] stepped with registry specs or Python
+//!   providers; body state and step reports as NumPy arrays; `step_islands` returns every
+//!   island's problem and solution (training data without files);
+//! * Python providers — [`provider::PythonProvider`], a
+//!   [`WarmStart`](deepcontact_core::WarmStart) calling a Python callable or object, its output
+//!   checked by the world's guard like a Rust provider's;
+//! * `compare` — [`deepcontact_experiments::compare`] with the Python providers registered
+//!   into [`deepcontact_experiments::full_registry`], Ctrl-C checked between steps.
+//!
+//! The GIL is released while Rust works and taken only to call a Python provider.
+#![warn(missing_docs)]
+
+mod compare;
+mod error;
+mod island;
+mod provider;
+mod world;
+
+use pyo3::prelude::*;
+
+pub use error::PythonBindingError;
+
+/// Runs the comparison of the CLI's `compare` and returns its summary rows (see
+/// `deepcontact.compare`, which wraps it).
+#[pyfunction]
+#[pyo3(signature = (warm_starts, seeds, steps, solvers, bodies, scene, tolerance, max_iterations, norm, guard, threads, out, figures))]
+#[allow(clippy::too_many_arguments)]
+fn compare_summary(
+    py: Python<'_>,
+    warm_starts: Vec<Py<PyAny>>,
+    seeds: Vec<u64>,
+    steps: u64,
+    solvers: Vec<String>,
+    bodies: usize,
+    scene: String,
+    tolerance: f64,
+    max_iterations: u32,
+    norm: String,
+    guard: String,
+    threads: usize,
+    out: Option<std::path::PathBuf>,
+    figures: bool,
+) -> Result<Py<pyo3::types::PyList>, PythonBindingError> {
+    compare::run(
+        py,
+        compare::CompareArgs {
+            warm_starts,
+            seeds,
+            steps,
+            solvers,
+            bodies,
+            scene,
+            tolerance,
+            max_iterations,
+            norm,
+            guard,
+            threads,
+            out,
+            figures,
+        },
+    )
+}
+
+/// The providers and solvers of the full registry: `(providers, solvers)`, each a list of
+/// `(name, help)` pairs.
+#[pyfunction]
+#[allow(clippy::type_complexity)]
+fn registry() -> (Vec<(String, String)>, Vec<(String, String)>) {
+    let registry = deepcontact_experiments::full_registry();
+    let pairs = |it: &mut dyn Iterator<Item = (&str, &str)>| {
+        it.map(|(n, h)| (n.to_string(), h.to_string())).collect()
+    };
+    (
+        pairs(&mut registry.providers()),
+        pairs(&mut registry.solvers()),
+    )
+}
+
+/// The native module.
+#[pymodule]
+fn _deepcontact(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    let py = m.py();
+    m.add_class::<world::PyWorld>()?;
+    m.add_class::<world::StepReport>()?;
+    m.add_class::<world::Island>()?;
+    m.add_class::<island::IslandProblem>()?;
+    m.add_function(wrap_pyfunction!(compare_summary, m)?)?;
+    m.add_function(wrap_pyfunction!(registry, m)?)?;
+    m.add("DeepContactError", py.get_type::<error::DeepContactError>())?;
+    m.add("WarmStartError", py.get_type::<error::WarmStartError>())?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

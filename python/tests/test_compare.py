@@ -1,0 +1,124 @@
+"""deepcontact.compare: the CLI's comparison, its numbers, Python providers, Ctrl-C."""
+
+import _thread
+import json
+import os
+import pathlib
+import subprocess
+import threading
+import time
+
+import pytest
+
+import deepcontact
+from conftest import carried, zeros
+
+SEEDS = [12345, 12346]
+STEPS = 60  # the first contacts come after ~35 steps: 30 steps would compare only zeros
+# Columns that are wall times (and ratios of them): everything else must match exactly.
+TIMING = {"warm_start_ms", "solve_ms", "step_ms", "speedup_vs_none", "speedup_vs_builtin"}
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+
+
+def numbers(row):
+    return {k: v for k, v in row.items() if k not in TIMING and k != "warm_start"}
+
+
+@pytest.fixture(scope="module")
+def rows():
+    return deepcontact.compare(
+        ["none", "builtin", carried, zeros], seeds=SEEDS, steps=STEPS, as_frame=False
+    )
+
+
+def test_summary_rows(rows):
+    assert [r["warm_start"] for r in rows] == ["none", "builtin", "carried", "zeros"]
+    columns = list(rows[0])
+    assert columns[:4] == ["solver", "warm_start", "seeds", "steps"]
+    assert rows[0]["steps"] == len(SEEDS) * STEPS and rows[0]["contact_steps"] > 0
+    assert rows[1]["mean_iterations"] < rows[0]["mean_iterations"]
+
+
+def test_python_providers_give_the_registry_numbers(rows):
+    none, builtin, carried_row, zeros_row = rows
+    assert numbers(carried_row) == numbers(builtin)
+    assert numbers(zeros_row) == numbers(none)
+
+
+def cli():
+    path = os.environ.get("DEEPCONTACT_CLI", str(ROOT / "target" / "release" / "deepcontact"))
+    if not os.path.exists(path):
+        pytest.skip(f"no CLI binary at {path} (cargo build --release, or set DEEPCONTACT_CLI)")
+    return path
+
+
+def test_same_numbers_as_the_cli(rows, tmp_path):
+    out = tmp_path / "cli"
+    subprocess.run(
+        [cli(), "compare", "--seeds", "12345..12347", "--steps", str(STEPS),
+         "--warm-starts", "none,builtin", "--out", str(out)],
+        check=True, stdout=subprocess.DEVNULL,
+    )
+    summary = json.loads((out / "summary.json").read_text())["summary"]
+    assert [r["warm_start"] for r in summary] == ["none", "builtin"]
+    for ours, theirs in zip(rows[:2], summary):
+        assert numbers(ours) == numbers(theirs)
+
+
+def test_outputs_are_the_cli_files(tmp_path):
+    rows = deepcontact.compare(["none", carried], seeds=SEEDS[:1], steps=40, out=tmp_path,
+                               as_frame=False)
+    assert {p.name for p in tmp_path.iterdir()} >= {
+        "steps.csv", "curves.csv", "summary.csv", "summary.md", "summary.json"
+    }
+    written = json.loads((tmp_path / "summary.json").read_text())["summary"]
+    assert [numbers(r) for r in written] == [numbers(r) for r in rows]
+
+
+def test_python_provider_errors_in_compare():
+    def broken(island):
+        raise ValueError("no luck")
+
+    rows = deepcontact.compare(["none", broken], seeds=SEEDS[:1], steps=STEPS, as_frame=False)
+    assert rows[1]["fallbacks"] > 0 and numbers(rows[1])["mean_iterations"] == rows[0]["mean_iterations"]
+    with pytest.raises(deepcontact.WarmStartError, match="no luck"):
+        deepcontact.compare([broken], seeds=SEEDS[:1], steps=STEPS, guard="error")
+
+
+def test_names_and_bad_arguments():
+    def builtin(island):
+        return island.carried
+
+    with pytest.raises(ValueError, match="registry provider"):
+        deepcontact.compare([builtin], seeds=SEEDS[:1], steps=5)
+    builtin.name = "mine"
+    rows = deepcontact.compare([builtin], seeds=SEEDS[:1], steps=5, as_frame=False)
+    assert rows[0]["warm_start"] == "mine"
+    with pytest.raises(ValueError, match="listed twice"):
+        deepcontact.compare(["none", "none"], seeds=SEEDS[:1], steps=5)
+    with pytest.raises(ValueError, match="unknown warm start"):
+        deepcontact.compare(["nope"], seeds=SEEDS[:1], steps=5)
+
+
+def test_keyboard_interrupt_stops_a_long_compare(tmp_path):
+    def slow(island):
+        time.sleep(0.001)
+        return island.carried
+
+    timer = threading.Timer(0.5, _thread.interrupt_main)
+    timer.start()
+    t0 = time.perf_counter()
+    with pytest.raises(KeyboardInterrupt):
+        # ~10 minutes if it ran to the end
+        deepcontact.compare([slow, "none"], seeds=range(12345, 12445), steps=250, out=tmp_path)
+    timer.join()
+    assert time.perf_counter() - t0 < 10.0
+    assert list(tmp_path.iterdir()) == []  # nothing half-written
+    # the process is fine and the next comparison runs
+    assert len(deepcontact.compare(["none"], seeds=SEEDS[:1], steps=5, as_frame=False)) == 1
+
+
+def test_registry_lists_providers_and_solvers():
+    providers, solvers = deepcontact.registry()
+    assert {"none", "builtin", "copy"} <= {name for name, _ in providers}
+    assert {"pgs", "newton"} <= {name for name, _ in solvers}
