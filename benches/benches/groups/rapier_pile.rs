@@ -3,9 +3,7 @@
 //!
 //! Matching choices (see docs/BENCHMARKS.md): the very same bodies as deepcontact's
 //! [`Scene`] (circles r 0.5, density 1, friction 0.5, restitution 0; the four static walls as
-//! segments), gravity −9.81, dt 0.01, `num_solver_iterations` = our fixed velocity iteration
-//! count (rapier runs that many substeps, each one PGS iteration plus one stabilisation
-//! iteration), no sleeping, CCD off (`max_ccd_substeps = 0`), friction mixed as the
+//! segments), gravity −9.81, dt 0.01, the solver passes of a [`RapierConfig`], no sleeping, CCD off (`max_ccd_substeps = 0`), friction mixed as the
 //! geometric mean (Box2D's `sqrt(μ1 μ2)`; with μ = 0.5 everywhere rapier's default
 //! `Average` would agree anyway) and restitution as the maximum, contact recycling and
 //! clustering off (we run the narrow phase on every pair every step), prediction distance 0
@@ -15,18 +13,47 @@ use deepcontact_core::scene::Scene;
 use deepcontact_core::{BodyKind, ShapeDesc};
 use rapier2d::prelude::*;
 
-/// A rapier2d world holding a deepcontact scene.
-pub struct RapierPile {
-    /// The rapier world.
-    pub world: PhysicsWorld,
+/// How rapier2d spends its velocity solve: the unit of work one of our PGS iterations is
+/// set beside.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RapierConfig {
+    /// One substep with `n` internal PGS passes, friction solved in every pass
+    /// (`num_solver_iterations = 1`, `num_internal_pgs_iterations = n`,
+    /// `friction_in_bias_pass = true`), then rapier's one stabilisation pass: one integration,
+    /// one constraint update, `n + 1` passes over the contacts. The like-with-like
+    /// configuration: each of our iterations is one such pass (normal and friction rows).
+    Passes(usize),
+    /// As [`Self::Passes`] with rapier's default friction rule: friction only in the final
+    /// (unbiased) pass, the `n` biased passes solve the normal rows alone.
+    PassesNormalOnly(usize),
+    /// `n` substeps (`num_solver_iterations = n`), each an integration, a constraint update,
+    /// one PGS pass (normal rows only: rapier's default friction rule) and one stabilisation
+    /// pass (normal and friction rows): `2n` passes, `n` integrations.
+    Substeps(usize),
 }
 
-impl RapierPile {
-    /// Builds the scene in rapier2d with the matched settings and `iterations` solver iterations.
-    pub fn new(scene: &Scene, iterations: usize) -> Self {
-        let parameters = IntegrationParameters {
+impl RapierConfig {
+    /// The label of the benchmarks and tables.
+    pub fn label(self) -> String {
+        match self {
+            Self::Passes(n) => format!("rapier2d-passes{n}"),
+            Self::PassesNormalOnly(n) => format!("rapier2d-passes{n}-normal-only"),
+            Self::Substeps(n) => format!("rapier2d-substeps{n}"),
+        }
+    }
+
+    /// Passes over the contacts in one step (PGS and stabilisation passes together).
+    pub fn passes(self) -> usize {
+        match self {
+            Self::Passes(n) | Self::PassesNormalOnly(n) => n + 1,
+            Self::Substeps(n) => 2 * n,
+        }
+    }
+
+    /// The matched integration parameters with this configuration's solver passes.
+    fn parameters(self) -> IntegrationParameters {
+        let base = IntegrationParameters {
             dt: 0.01,
-            num_solver_iterations: iterations,
             max_ccd_substeps: 0,
             contact_recycling: false,
             contact_clustering: false,
@@ -34,9 +61,34 @@ impl RapierPile {
             normalized_allowed_linear_error: 0.0005,
             ..IntegrationParameters::default()
         };
+        match self {
+            Self::Passes(n) | Self::PassesNormalOnly(n) => IntegrationParameters {
+                num_solver_iterations: 1,
+                num_internal_pgs_iterations: n,
+                friction_in_bias_pass: matches!(self, Self::Passes(_)),
+                ..base
+            },
+            Self::Substeps(n) => IntegrationParameters {
+                num_solver_iterations: n,
+                ..base
+            },
+        }
+    }
+}
+
+/// A rapier2d world holding a deepcontact scene.
+pub struct RapierPile {
+    /// The rapier world.
+    pub world: PhysicsWorld,
+    config: RapierConfig,
+}
+
+impl RapierPile {
+    /// Builds the scene in rapier2d with the matched settings and the solver passes of `config`.
+    pub fn new(scene: &Scene, config: RapierConfig) -> Self {
         let mut world = PhysicsWorld {
             gravity: Vector::new(0.0, -9.81),
-            integration_parameters: parameters,
+            integration_parameters: config.parameters(),
             ..PhysicsWorld::default()
         };
         for desc in &scene.bodies {
@@ -70,7 +122,18 @@ impl RapierPile {
                 .restitution_combine_rule(CoefficientCombineRule::Max);
             world.insert(body, collider);
         }
-        Self { world }
+        Self { world, config }
+    }
+
+    /// Passes over the contacts per step in the configuration now in use.
+    pub fn passes(&self) -> usize {
+        self.config.passes()
+    }
+
+    /// Switches the solver configuration (the world's state is kept).
+    pub fn set_config(&mut self, config: RapierConfig) {
+        self.world.integration_parameters = config.parameters();
+        self.config = config;
     }
 
     /// One step of dt.
@@ -102,17 +165,6 @@ impl RapierPile {
             .counters
             .solver
             .velocity_resolution_time
-            .time()
-            .as_secs_f64()
-    }
-
-    /// Seconds of the last step in rapier's collision detection (broad and narrow phase).
-    pub fn collision_seconds(&self) -> f64 {
-        self.world
-            .physics_pipeline
-            .counters
-            .stages
-            .collision_detection_time
             .time()
             .as_secs_f64()
     }
