@@ -7,7 +7,7 @@
 //! * `World` — a scene of [`deepcontact_core::scene`] stepped with registry specs or Python
 //!   providers; body state and step reports as NumPy arrays; `step_islands` returns every
 //!   island's problem and solution (training data without files);
-//! * Python providers — [`provider::PythonProvider`], a
+//! * Python providers — `PythonProvider`, a
 //!   [`WarmStart`](deepcontact_core::WarmStart) calling a Python callable or object, its output
 //!   checked by the world's guard like a Rust provider's;
 //! * `compare` — [`deepcontact_experiments::compare`] with the Python providers registered

@@ -65,6 +65,21 @@ def test_same_numbers_as_the_cli(rows, tmp_path):
         assert numbers(ours) == numbers(theirs)
 
 
+@pytest.mark.parametrize("spec, provider", [("builtin", carried), ("none", zeros)])
+def test_same_iterations_per_step_as_cli_simulate(spec, provider):
+    steps = 80
+    lines = subprocess.run(
+        [cli(), "simulate", "--seed", "12345", "--steps", str(steps), "--warm-start", spec,
+         "--json"],
+        check=True, capture_output=True, text=True,
+    ).stdout.splitlines()
+    theirs = [json.loads(line)["velocity_iterations"] for line in lines if line.startswith("{")]
+    assert len(theirs) == steps and sum(theirs) > 0
+    for warm_start in (spec, provider):
+        world = deepcontact.World.pile(seed=12345, bodies=100)
+        assert [r.iterations for r in world.run(steps, warm_start=warm_start)] == theirs
+
+
 def test_outputs_are_the_cli_files(tmp_path):
     rows = deepcontact.compare(["none", carried], seeds=SEEDS[:1], steps=40, out=tmp_path,
                                as_frame=False)
