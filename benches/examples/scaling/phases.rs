@@ -7,7 +7,8 @@ use deepcontact_core::broad_phase::BroadPhase;
 use deepcontact_core::island::Islands;
 use deepcontact_core::narrow_phase::NarrowPhase;
 use deepcontact_core::{
-    Impulse, Pose, PositionSolver, SolveReport, Velocity, VelocitySolver, World,
+    ContactProblem, Impulse, Pose, PositionSolver, SolveReport, Velocity, VelocitySolver, World,
+    WorldSettings,
 };
 use deepcontact_pgs::{PgsPositionSolver, PgsSolver};
 
@@ -31,18 +32,10 @@ pub struct Phases {
     pub pairs: usize,
 }
 
-/// Times the phases of a fixed-`iterations` step on `world`, each the minimum over `reps`.
+/// Times the phases of a fixed-`iterations` step on `world`, each the minimum over `reps`
+/// (robust to other processes on the machine).
 pub fn phases(world: &World, iterations: u32, reps: u32) -> Result<Phases, String> {
-    let bodies = world.bodies();
-    let (mut bp, mut np, mut isl) = (BroadPhase::new(), NarrowPhase::new(), Islands::default());
-    let dynamic: Vec<bool> = bodies.iter().map(|b| b.is_dynamic()).collect();
-    let settings = fixed_world(iterations);
-    let (mut vs, mut ps) = (PgsSolver::default(), PgsPositionSolver::default());
-    let mut impulses: Vec<Impulse> = Vec::new();
-    let mut velocities: Vec<Velocity> = Vec::new();
-    let mut poses: Vec<Pose> = Vec::new();
-    let mut report = SolveReport::default();
-    // Each phase's minimum over the repetitions: robust to other processes on the machine.
+    let mut timer = PhaseTimer::new(world, iterations);
     let inf = f64::INFINITY;
     let mut ph = Phases {
         broad: inf,
@@ -53,70 +46,13 @@ pub fn phases(world: &World, iterations: u32, reps: u32) -> Result<Phases, Strin
         ..Phases::default()
     };
     for _ in 0..reps {
+        timer.collision(&mut ph);
         let (mut velocity, mut position, mut position_iterations) = (0.0, 0.0, 0.0);
-        let t = Instant::now();
-        let pairs = bp.find_pairs(bodies, settings.prediction).to_vec();
-        ph.broad = ph.broad.min(t.elapsed().as_secs_f64());
-        ph.pairs = pairs.len();
-        let t = Instant::now();
-        np.collide(bodies, &pairs, settings.prediction);
-        ph.narrow = ph.narrow.min(t.elapsed().as_secs_f64());
-        let manifold_bodies: Vec<(u32, u32)> = np
-            .manifolds_ranges
-            .iter()
-            .map(|&(s, _)| {
-                (
-                    np.contacts[s as usize].id.body_a,
-                    np.contacts[s as usize].id.body_b,
-                )
-            })
-            .collect();
-        let t = Instant::now();
-        isl.build(&dynamic, &manifold_bodies);
-        ph.islands = ph.islands.min(t.elapsed().as_secs_f64());
         for problem in world.last_problems() {
-            // Start from the impulses the world solved for these points (the builtin warm start).
-            let solved = world.contacts();
-            impulses.clear();
-            impulses.extend(problem.points.iter().map(|p| {
-                solved
-                    .binary_search_by(|(k, _)| k.cmp(&p.id))
-                    .map(|i| solved[i].1)
-                    .unwrap_or(Impulse::ZERO)
-            }));
-            velocities.clear();
-            velocities.resize(problem.bodies.len(), Velocity::default());
-            let t = Instant::now();
-            vs.solve(
-                problem,
-                &fixed_iterations(iterations),
-                &mut impulses,
-                &mut velocities,
-                &mut report,
-            )
-            .map_err(|e| e.to_string())?;
-            velocity += t.elapsed().as_secs_f64();
-            poses.clear();
-            // The poses the world's position pass starts from: contact-time poses moved by dt × the
-            // solved velocities (the world's bodies hold those velocities after the step).
-            let dt = world.settings().dt;
-            poses.extend(problem.bodies.iter().map(|b| {
-                let body = &bodies[b.world_index as usize];
-                if body.is_dynamic() {
-                    Pose::new(
-                        b.position + dt * body.linear_velocity,
-                        b.angle + dt * body.angular_velocity,
-                    )
-                } else {
-                    Pose::new(b.position, b.angle)
-                }
-            }));
-            let t = Instant::now();
-            let r = ps
-                .solve_positions(problem, &settings.position, &mut poses)
-                .map_err(|e| e.to_string())?;
-            position += t.elapsed().as_secs_f64();
-            position_iterations += f64::from(r.iterations) * problem.points.len() as f64;
+            velocity += timer.velocity(problem)?;
+            let (seconds, iterations) = timer.position(problem)?;
+            position += seconds;
+            position_iterations += f64::from(iterations) * problem.points.len() as f64;
         }
         ph.velocity = ph.velocity.min(velocity);
         ph.position = ph.position.min(position);
@@ -126,4 +62,122 @@ pub fn phases(world: &World, iterations: u32, reps: u32) -> Result<Phases, Strin
     // Contact-weighted mean position iterations.
     ph.position_iterations /= contacts.max(1) as f64;
     Ok(ph)
+}
+
+/// The pieces of `World::step`, run one by one on a settled world's state.
+struct PhaseTimer<'w> {
+    world: &'w World,
+    iterations: u32,
+    settings: WorldSettings,
+    dynamic: Vec<bool>,
+    broad: BroadPhase,
+    narrow: NarrowPhase,
+    islands: Islands,
+    velocity_solver: PgsSolver,
+    position_solver: PgsPositionSolver,
+    impulses: Vec<Impulse>,
+    velocities: Vec<Velocity>,
+    poses: Vec<Pose>,
+    report: SolveReport,
+}
+
+impl<'w> PhaseTimer<'w> {
+    fn new(world: &'w World, iterations: u32) -> Self {
+        Self {
+            world,
+            iterations,
+            settings: fixed_world(iterations),
+            dynamic: world.bodies().iter().map(|b| b.is_dynamic()).collect(),
+            broad: BroadPhase::new(),
+            narrow: NarrowPhase::new(),
+            islands: Islands::default(),
+            velocity_solver: PgsSolver::default(),
+            position_solver: PgsPositionSolver::default(),
+            impulses: Vec::new(),
+            velocities: Vec::new(),
+            poses: Vec::new(),
+            report: SolveReport::default(),
+        }
+    }
+
+    /// Broad phase, narrow phase and islands, each timed into `ph` (minimum so far).
+    fn collision(&mut self, ph: &mut Phases) {
+        let bodies = self.world.bodies();
+        let prediction = self.settings.prediction;
+        let t = Instant::now();
+        let pairs = self.broad.find_pairs(bodies, prediction).to_vec();
+        ph.broad = ph.broad.min(t.elapsed().as_secs_f64());
+        ph.pairs = pairs.len();
+        let t = Instant::now();
+        self.narrow.collide(bodies, &pairs, prediction);
+        ph.narrow = ph.narrow.min(t.elapsed().as_secs_f64());
+        let contacts = &self.narrow.contacts;
+        let manifold_bodies: Vec<(u32, u32)> = self
+            .narrow
+            .manifolds_ranges
+            .iter()
+            .map(|&(s, _)| {
+                (
+                    contacts[s as usize].id.body_a,
+                    contacts[s as usize].id.body_b,
+                )
+            })
+            .collect();
+        let t = Instant::now();
+        self.islands.build(&self.dynamic, &manifold_bodies);
+        ph.islands = ph.islands.min(t.elapsed().as_secs_f64());
+    }
+
+    /// Seconds of the fixed-count velocity solve of `problem`, started from the impulses the
+    /// world solved for its points (the builtin warm start).
+    fn velocity(&mut self, problem: &ContactProblem) -> Result<f64, String> {
+        let solved = self.world.contacts();
+        self.impulses.clear();
+        self.impulses.extend(problem.points.iter().map(|p| {
+            solved
+                .binary_search_by(|(k, _)| k.cmp(&p.id))
+                .map(|i| solved[i].1)
+                .unwrap_or(Impulse::ZERO)
+        }));
+        self.velocities.clear();
+        self.velocities
+            .resize(problem.bodies.len(), Velocity::default());
+        let t = Instant::now();
+        self.velocity_solver
+            .solve(
+                problem,
+                &fixed_iterations(self.iterations),
+                &mut self.impulses,
+                &mut self.velocities,
+                &mut self.report,
+            )
+            .map_err(|e| e.to_string())?;
+        Ok(t.elapsed().as_secs_f64())
+    }
+
+    /// Seconds and iterations of the position pass of `problem`, from the poses the world's
+    /// pass starts from: contact-time poses moved by dt × the solved velocities (the world's
+    /// bodies hold those velocities after the step).
+    fn position(&mut self, problem: &ContactProblem) -> Result<(f64, u32), String> {
+        let bodies = self.world.bodies();
+        let dt = self.world.settings().dt;
+        self.poses.clear();
+        self.poses.extend(problem.bodies.iter().map(|b| {
+            let body = &bodies[b.world_index as usize];
+            if body.is_dynamic() {
+                Pose::new(
+                    b.position + dt * body.linear_velocity,
+                    b.angle + dt * body.angular_velocity,
+                )
+            } else {
+                Pose::new(b.position, b.angle)
+            }
+        }));
+        let t = Instant::now();
+        let r = self
+            .position_solver
+            .solve_positions(problem, &self.settings.position, &mut self.poses)
+            .map_err(|e| e.to_string())?;
+        Ok((t.elapsed().as_secs_f64(), r.iterations))
+    }
 }
