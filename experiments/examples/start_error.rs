@@ -6,7 +6,7 @@
 //! matrix on λ*'s active set: loaded normal rows, friction rows inside the cone), and
 //! measures PGS iterations to the world's tolerance from λc, from 0, and from `λ* + e`
 //! with either its slow part (the eigenvectors of the smallest 10 % of eigenvalues) or its
-//! fast part removed.
+//! fast part removed, and how soft the slow modes are (the eigenvalue at 10 % over the median).
 //!
 //! ```sh
 //! cargo run --release -p deepcontact-experiments --example start_error -- 100..104
@@ -102,6 +102,8 @@ struct Row {
     velocity_error: f64,
     slow_only: u32,
     fast_only: u32,
+    /// Eigenvalue at the slow/fast border over the median eigenvalue of `W_AA`.
+    softness: f64,
 }
 
 fn analyse(seed: u64, step: u64, problem: &ContactProblem, carried: &[Impulse]) -> Row {
@@ -143,6 +145,8 @@ fn analyse(seed: u64, step: u64, problem: &ContactProblem, carried: &[Impulse]) 
         }
     }
     let fast = &e - &slow;
+    let eigenvalue = |q: f64| eig.eigenvalues[order[((order.len() - 1) as f64 * q) as usize]];
+    let softness = eigenvalue(SLOW_SHARE) / eigenvalue(0.5);
 
     let (slow_only, _) = solve(problem, &unflat(&(&x - &slow)), tolerance);
     let (fast_only, _) = solve(problem, &unflat(&(&x - &fast)), tolerance);
@@ -157,6 +161,7 @@ fn analyse(seed: u64, step: u64, problem: &ContactProblem, carried: &[Impulse]) 
         velocity_error: we.norm(),
         slow_only,
         fast_only,
+        softness,
     }
 }
 
@@ -164,10 +169,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let arg = std::env::args().nth(1).unwrap_or_else(|| "100..104".into());
     let seeds = deepcontact_experiments::seeds::parse_seeds(&arg)?;
     println!(
-        "| seed | step | points | it from carried | it from 0 | ‖e‖₂ | slow share of ‖e‖² | ‖W_AA e_A‖₂ | it, slow part only | it, fast part only |"
+        "| seed | step | points | it from carried | it from 0 | ‖e‖₂ | slow share of ‖e‖² | ‖W_AA e_A‖₂ | it, slow part only | it, fast part only | μ₁₀ % / μ₅₀ % |"
     );
-    println!("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
-    let mut totals = [0.0; 4];
+    println!("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let mut totals = [0.0; 5];
     let mut count = 0.0;
     for seed in seeds {
         let mut world = scene::pile(seed, 100)?.build(WorldSettings::default())?;
@@ -179,7 +184,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         for (step, problem, carried) in &recorder.taken {
             let r = analyse(seed, *step, problem, carried);
             println!(
-                "| {} | {} | {} | {} | {} | {:.3e} | {:.3} | {:.3e} | {} | {} |",
+                "| {} | {} | {} | {} | {} | {:.3e} | {:.3} | {:.3e} | {} | {} | {:.2e} |",
                 r.seed,
                 r.step,
                 r.points,
@@ -189,21 +194,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 r.slow_share,
                 r.velocity_error,
                 r.slow_only,
-                r.fast_only
+                r.fast_only,
+                r.softness
             );
             totals[0] += f64::from(r.from_carried);
             totals[1] += r.slow_share;
             totals[2] += f64::from(r.slow_only);
             totals[3] += f64::from(r.fast_only);
+            totals[4] += r.softness;
             count += 1.0;
         }
     }
     println!(
-        "\nmean over {count} islands: iterations from carried {:.1}, slow share {:.3}, iterations with the slow part only {:.1}, with the fast part only {:.1}",
+        "\nmean over {count} islands: iterations from carried {:.1}, slow share {:.3}, iterations with the slow part only {:.1}, with the fast part only {:.1}, μ₁₀ % / μ₅₀ % {:.2e}",
         totals[0] / count,
         totals[1] / count,
         totals[2] / count,
-        totals[3] / count
+        totals[3] / count,
+        totals[4] / count
     );
     Ok(())
 }
