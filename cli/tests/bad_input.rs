@@ -225,6 +225,11 @@ fn cases(dir: &Path) -> Vec<Case> {
             &["generate", "--shard", "4/4", "--out", &out, "--quiet"],
             "4/4",
         ),
+        case(
+            "a hundred million round-trip worlds (hung before the ceiling)",
+            &["grid-roundtrip", "--worlds", "100000000", "--out", &out],
+            "ceiling",
+        ),
     ];
     list
 }

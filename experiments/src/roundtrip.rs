@@ -24,7 +24,8 @@ use crate::atomic::write_atomic;
 /// What to measure. [`RoundtripConfig::default`] is the table of `docs/`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RoundtripConfig {
-    /// Number of piles, seeds `first_seed..first_seed + worlds` (default 25).
+    /// Number of piles, seeds `first_seed..first_seed + worlds` (default 25, at most
+    /// [`crate::seeds::MAX_SEEDS`]).
     pub worlds: u64,
     /// Steps each pile is simulated before the round trip (default 200).
     pub steps: u64,
@@ -111,6 +112,13 @@ pub fn world_sums(
 pub fn table(config: &RoundtripConfig) -> Result<Vec<Row>, ExperimentError> {
     if config.worlds == 0 {
         return Err(ExperimentError::Invalid("worlds must be at least 1".into()));
+    }
+    if config.worlds > crate::seeds::MAX_SEEDS as u64 {
+        return Err(ExperimentError::Invalid(format!(
+            "--worlds {} is above the ceiling of {} worlds (seeds::MAX_SEEDS)",
+            config.worlds,
+            crate::seeds::MAX_SEEDS
+        )));
     }
     let seeds: Vec<u64> = (0..config.worlds)
         .map(|i| config.first_seed.wrapping_add(i))
@@ -265,5 +273,15 @@ mod tests {
             ..config
         };
         assert!(table(&bad).is_err());
+    }
+
+    #[test]
+    fn regression_a_hundred_million_worlds_hung_before_any_output() {
+        let huge = RoundtripConfig {
+            worlds: 100_000_000,
+            ..RoundtripConfig::default()
+        };
+        let e = table(&huge).unwrap_err().to_string();
+        assert!(e.contains("ceiling of 1000000 worlds"), "{e}");
     }
 }
