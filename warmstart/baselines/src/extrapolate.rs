@@ -1,10 +1,10 @@
 //! The `extrapolate` provider: carried impulses continued linearly in time.
 
-use std::collections::HashMap;
-
 use deepcontact_core::{
-    ContactId, Impulse, Observation, Real, SpecError, WarmStart, WarmStartContext, WarmStartError,
+    Impulse, Observation, Real, SpecError, WarmStart, WarmStartContext, WarmStartError,
 };
+
+use crate::by_contact::StartsByContact;
 
 /// `λ_t + α (λ_t − λ_{t−1})` by contact id: if a point's impulse grew last step it is
 /// expected to grow again (a load arriving from above, a body sliding to rest). Points seen
@@ -21,11 +21,7 @@ use deepcontact_core::{
 #[derive(Debug, Clone)]
 pub struct ExtrapolatedWarmStart {
     alpha: Real,
-    /// Starts for the step being solved, by contact id.
-    current: HashMap<ContactId, Impulse>,
-    /// Starts for the next step, written by `observe`.
-    next: HashMap<ContactId, Impulse>,
-    step: Option<u64>,
+    starts: StartsByContact,
 }
 
 impl ExtrapolatedWarmStart {
@@ -41,9 +37,7 @@ impl ExtrapolatedWarmStart {
         }
         Ok(Self {
             alpha,
-            current: HashMap::new(),
-            next: HashMap::new(),
-            step: None,
+            starts: StartsByContact::default(),
         })
     }
 
@@ -63,17 +57,7 @@ impl WarmStart for ExtrapolatedWarmStart {
         ctx: &WarmStartContext<'_>,
         out: &mut [Impulse],
     ) -> Result<(), WarmStartError> {
-        if self.step != Some(ctx.step) {
-            std::mem::swap(&mut self.current, &mut self.next);
-            self.next.clear();
-            self.step = Some(ctx.step);
-        }
-        for (i, (o, p)) in out.iter_mut().zip(&ctx.problem.points).enumerate() {
-            *o = match self.current.get(&p.id) {
-                Some(&start) if ctx.carried.get(i).is_some_and(Option::is_some) => start,
-                _ => ctx.carried_or_zero(i),
-            };
-        }
+        self.starts.fill(ctx, out);
         Ok(())
     }
 
@@ -92,13 +76,11 @@ impl WarmStart for ExtrapolatedWarmStart {
                 }
                 None => *now,
             };
-            self.next.insert(p.id, start);
+            self.starts.insert(p.id, start);
         }
     }
 
     fn reset(&mut self) {
-        self.current.clear();
-        self.next.clear();
-        self.step = None;
+        self.starts.clear();
     }
 }

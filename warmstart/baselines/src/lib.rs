@@ -23,6 +23,7 @@
 #![warn(missing_docs)]
 
 mod best;
+mod by_contact;
 mod constant;
 mod extrapolate;
 mod krylov;

@@ -35,14 +35,8 @@ pub fn register(registry: &mut Registry) {
          sweeps=2, max_rate=0.995, extrapolate=true, factor=1, solver=pgs",
         |p, r| {
             let d = TailConfig::default();
-            let sweeps = p.u64("sweeps", u64::from(d.sweeps))?;
             let config = TailConfig {
-                sweeps: u32::try_from(sweeps).map_err(|_| SpecError::InvalidParameter {
-                    spec: p.name().into(),
-                    param: "sweeps".into(),
-                    value: sweeps.to_string(),
-                    reason: "too large".into(),
-                })?,
+                sweeps: u32_param(p, "sweeps", d.sweeps)?,
                 max_rate: p.f64("max_rate", d.max_rate)?,
                 extrapolate: p.choice("extrapolate", &["true", "false"])? != Some("false"),
                 factor: p.f64("factor", d.factor)?,
@@ -61,14 +55,8 @@ pub fn register(registry: &mut Registry) {
         "builtin plus conjugate-gradient steps on the carried active set; iterations=10, friction=true",
         |p, _| {
             let d = KrylovConfig::default();
-            let iterations = p.u64("iterations", u64::from(d.iterations))?;
             let config = KrylovConfig {
-                iterations: u32::try_from(iterations).map_err(|_| SpecError::InvalidParameter {
-                    spec: p.name().into(),
-                    param: "iterations".into(),
-                    value: iterations.to_string(),
-                    reason: "too large".into(),
-                })?,
+                iterations: u32_param(p, "iterations", d.iterations)?,
                 friction: p.choice("friction", &["true", "false"])? != Some("false"),
             };
             Ok(Box::new(KrylovWarmStart::new(config)?))
@@ -153,6 +141,17 @@ pub fn register(registry: &mut Registry) {
         .oracle(),
         |p, r| Ok(Box::new(Rounded::new(build_oracle(p, r)?, 0)?)),
     );
+}
+
+/// A `u32` parameter, or `default`; above `u32::MAX` is a typed error.
+fn u32_param(p: &mut Params<'_>, key: &'static str, default: u32) -> Result<u32, SpecError> {
+    let value = p.u64(key, u64::from(default))?;
+    u32::try_from(value).map_err(|_| SpecError::InvalidParameter {
+        spec: p.name().into(),
+        param: key.into(),
+        value: value.to_string(),
+        reason: "too large".into(),
+    })
 }
 
 fn decimals_u32(spec: &str, d: u64) -> Result<u32, SpecError> {

@@ -9,12 +9,12 @@
 //! `λ + Δλ_last ρ / (1 − ρ)`, projected onto the friction cone, under each point's
 //! [`ContactId`]; the next step starts from it (carried impulses where a point has none).
 
-use std::collections::HashMap;
-
 use deepcontact_core::{
-    ContactId, Impulse, Observation, Real, SolveReport, SolverSettings, SpecError, Velocity,
-    VelocitySolver, WarmStart, WarmStartContext, WarmStartError,
+    Impulse, Observation, Real, SolveReport, SolverSettings, SpecError, Velocity, VelocitySolver,
+    WarmStart, WarmStartContext, WarmStartError,
 };
+
+use crate::by_contact::StartsByContact;
 
 /// Parameters of [`TailWarmStart`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -57,11 +57,7 @@ pub struct TailWarmStart {
     solver: Box<dyn VelocitySolver>,
     config: TailConfig,
     sweep: SolverSettings,
-    /// Starts for the step being solved, by contact id.
-    current: HashMap<ContactId, Impulse>,
-    /// Starts for the next step, filled by `observe`.
-    next: HashMap<ContactId, Impulse>,
-    step: Option<u64>,
+    starts: StartsByContact,
     lambda: Vec<Impulse>,
     before: Vec<Impulse>,
     velocities: Vec<Velocity>,
@@ -122,9 +118,7 @@ impl TailWarmStart {
                 min_iterations: 1,
                 ..SolverSettings::default()
             },
-            current: HashMap::new(),
-            next: HashMap::new(),
-            step: None,
+            starts: StartsByContact::default(),
             lambda: Vec::new(),
             before: Vec::new(),
             velocities: Vec::new(),
@@ -182,17 +176,7 @@ impl WarmStart for TailWarmStart {
         ctx: &WarmStartContext<'_>,
         out: &mut [Impulse],
     ) -> Result<(), WarmStartError> {
-        if self.step != Some(ctx.step) {
-            std::mem::swap(&mut self.current, &mut self.next);
-            self.next.clear();
-            self.step = Some(ctx.step);
-        }
-        for (i, (o, p)) in out.iter_mut().zip(&ctx.problem.points).enumerate() {
-            *o = match self.current.get(&p.id) {
-                Some(&start) if ctx.carried.get(i).is_some_and(Option::is_some) => start,
-                _ => ctx.carried_or_zero(i),
-            };
-        }
+        self.starts.fill(ctx, out);
         Ok(())
     }
 
@@ -217,14 +201,12 @@ impl WarmStart for TailWarmStart {
             let normal = (s.normal + factor * tail_n).max(0.0);
             let bound = p.friction * normal;
             let tangent = (s.tangent + factor * tail_t).clamp(-bound, bound);
-            self.next.insert(p.id, Impulse::new(normal, tangent));
+            self.starts.insert(p.id, Impulse::new(normal, tangent));
         }
     }
 
     fn reset(&mut self) {
-        self.current.clear();
-        self.next.clear();
-        self.step = None;
+        self.starts.clear();
         self.rate_sum = 0.0;
         self.rate_count = 0;
     }
