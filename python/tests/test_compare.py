@@ -137,3 +137,18 @@ def test_registry_lists_providers_and_solvers():
     providers, solvers = deepcontact.registry()
     assert {"none", "builtin", "copy"} <= {name for name, _ in providers}
     assert {"pgs", "newton"} <= {name for name, _ in solvers}
+
+
+def test_python_providers_are_deterministic_across_threads(rows):
+    two = deepcontact.compare(["none", "builtin", carried, zeros], seeds=SEEDS, steps=STEPS,
+                              threads=2, as_frame=False)
+    assert [numbers(r) for r in two] == [numbers(r) for r in rows]
+
+
+def test_bad_compare_arguments_are_value_errors():
+    with pytest.raises(ValueError, match="no seed"):
+        deepcontact.compare(["none"], seeds=[], steps=5)
+    with pytest.raises(ValueError, match="steps"):
+        deepcontact.compare(["none"], seeds=SEEDS, steps=0)
+    with pytest.raises(ValueError, match="MAX_BODIES"):
+        deepcontact.compare(["none"], seeds=SEEDS, steps=5, bodies=10**9)
