@@ -109,10 +109,20 @@ impl BlockLu {
     /// Works out the order, the filled pattern and the update lists of `del`'s block pattern,
     /// and copies `W` into that pattern.
     pub(crate) fn analyse(&mut self, del: &Delassus) -> Result<(), LcpError> {
+        let too_large = |what: &str, count: usize| LcpError::Factorization {
+            rows: del.rows(),
+            reason: format!("{count} {what}: block indices are 32-bit"),
+        };
+        if del.points() >= NONE as usize {
+            return Err(too_large("points", del.points()));
+        }
         self.point_graph(del);
         self.fill_reducing_order()?;
         self.symbolic_fill();
         self.block_rows();
+        if self.col.len() >= NONE as usize {
+            return Err(too_large("blocks after fill", self.col.len()));
+        }
         self.update_targets()?;
         self.load_w_values(del);
         Ok(())
