@@ -252,7 +252,7 @@ impl PyWorld {
 
     fn lock(&self) -> Result<std::sync::MutexGuard<'_, Inner>, PythonBindingError> {
         self.inner.try_lock().map_err(|_| {
-            PythonBindingError::Invalid("the world is being stepped by another thread".into())
+            PythonBindingError::Invalid("the world is busy: a step is running (from another thread, or this call comes from its provider)".into())
         })
     }
 }

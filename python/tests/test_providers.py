@@ -160,3 +160,18 @@ def test_exception_in_observe_is_raised_after_the_step():
 def test_not_a_provider_is_a_type_error():
     with pytest.raises(TypeError, match="warm_start must be"):
         deepcontact.World.pile().step(warm_start=42)
+
+
+def test_a_provider_touching_its_own_world_gets_an_error_not_a_deadlock(none_iterations):
+    world = deepcontact.World.pile(seed=SEED, bodies=100)
+
+    def peek(island):
+        world.positions  # the world is mid-step: a ValueError, so the island falls back
+        return island.carried
+
+    reports = world.run(STEPS, warm_start=peek)
+    assert [r.iterations for r in reports] == none_iterations
+    assert sum(r.fallbacks for r in reports) == sum(r.islands for r in reports) > 0
+    strict = deepcontact.World.pile(seed=SEED, bodies=100, guard="error")
+    with pytest.raises(deepcontact.WarmStartError, match="world is busy"):
+        strict.run(STEPS, warm_start=lambda island: strict.positions)
