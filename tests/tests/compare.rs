@@ -65,14 +65,27 @@ fn compare_writes_every_file_and_ignores_the_thread_count() {
     assert_eq!(
         one.warm_starts,
         [
-            "none", "builtin", "random", "bad", "copy", "copy2", "copy0", "grid", "pressure",
-            "peak"
+            "none",
+            "builtin",
+            "random",
+            "bad",
+            "copy",
+            "copy2",
+            "copy0",
+            "grid",
+            "pressure",
+            "peak",
+            "extrapolate",
+            "shock",
+            "tail",
+            "krylov",
+            "best"
         ]
     );
     assert_same_numbers(&one, &two);
 
     let rows = compare::summarize(&one);
-    assert_eq!(rows.len(), 10);
+    assert_eq!(rows.len(), 15);
     let row = |name: &str| rows.iter().find(|r| r.warm_start == name).unwrap();
     assert!(
         row("none").contact_steps > 5,
@@ -106,7 +119,7 @@ fn compare_writes_every_file_and_ignores_the_thread_count() {
     let steps = read("steps.csv");
     let mut lines = steps.lines();
     assert_eq!(lines.next(), Some(STEPS_COLUMNS));
-    assert_eq!(lines.count(), 10 * 2 * 45);
+    assert_eq!(lines.count(), 15 * 2 * 45);
     for col in [
         "contacts",
         "iterations",
@@ -131,7 +144,7 @@ fn compare_writes_every_file_and_ignores_the_thread_count() {
     );
     let summary = read("summary.csv");
     assert_eq!(summary.lines().next(), Some(SUMMARY_COLUMNS));
-    assert_eq!(summary.lines().count(), 1 + 10);
+    assert_eq!(summary.lines().count(), 1 + 15);
     let md = read("summary.md");
     assert_eq!(md, outputs.summary_md);
     for col in [
@@ -156,7 +169,15 @@ fn compare_writes_every_file_and_ignores_the_thread_count() {
         assert!(md.contains(col), "summary.md has {col}");
     }
     let json = read("summary.json");
-    assert_eq!(json.matches("\"warm_start\":").count(), 10, "{json}");
+    let parsed: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert_eq!(
+        parsed["summary"].as_array().map(Vec::len),
+        Some(15),
+        "{json}"
+    );
+    // Providers with state report it: tail its measured rate, best its candidates' shares.
+    let diagnostics = parsed["diagnostics"].as_array().unwrap();
+    assert!(diagnostics.iter().any(|d| d["warm_start"] == "tail"));
     assert!(json.contains("\"seeds\": [") && json.contains("\"copy0\""));
     let png = std::fs::read(dir.join("figures/residual.png")).unwrap();
     assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
