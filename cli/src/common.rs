@@ -68,7 +68,8 @@ pub struct SolverArgs {
     #[arg(long, value_enum, default_value = "correction")]
     pub position_stop: PositionStopArg,
     /// `thesis`: the original code's choices (its stop rules, raw warm starts, its `copy`
-    /// oracles, its initial worlds where the command has a scene), overriding `--norm`,
+    /// oracles, its initial worlds where the command has a scene left at `pile`), overriding
+    /// `--norm`,
     /// `--position-stop`, `--tolerance` and `--max-iterations`; see
     /// `deepcontact_experiments::preset`.
     #[arg(long, default_value = "default")]

@@ -29,8 +29,9 @@ pub struct CompareArgs {
     /// Circles in the pile (the box grows to keep the density).
     #[arg(long, default_value_t = 100)]
     pub bodies: usize,
-    /// Scene of every world: `pile`, or `thesis` (the original code's exact initial worlds,
-    /// seeds 12345–12354).
+    /// Scene of every world: `pile`, `thesis` (the original code's exact initial worlds,
+    /// seeds 12345–12354), or `file:PATH` (the worlds of a scene file, one per seed;
+    /// `deepcontact_core::scene_file`).
     #[arg(long, default_value = "pile")]
     pub scene: String,
     /// Velocity solver and stop rule (`--solver` is replaced by `--solvers` when given).
@@ -70,7 +71,11 @@ impl CompareArgs {
             seeds: parse_seeds(&self.seeds)?,
             steps: self.steps,
             bodies: self.bodies,
-            scene: preset.scene().unwrap_or(&self.scene).to_string(),
+            // The preset's worlds unless a scene is named (as `simulate`).
+            scene: match preset.scene() {
+                Some(s) if self.scene == "pile" => s.to_string(),
+                _ => self.scene.clone(),
+            },
             world: preset.world(self.solver.world_settings()),
             threads: self.threads.unwrap_or(0),
             progress: !self.quiet,

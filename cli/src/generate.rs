@@ -42,24 +42,33 @@ pub struct GenerateArgs {
     pub solver: SolverArgs,
 }
 
+impl GenerateArgs {
+    /// The run these options describe (with `--preset thesis`: the original's stop rules and
+    /// raw warm starts; the piles stay ours, as the original's training worlds came from other
+    /// seeds than its ten comparison worlds).
+    pub fn config(&self) -> Result<GenerateConfig, CliError> {
+        let mut seeds = parse_seeds(&self.seeds)?;
+        if let Some(shard) = &self.shard {
+            let (k, n) = parse_shard(shard)?;
+            seeds.retain(|s| s % n == k);
+        }
+        Ok(GenerateConfig {
+            seeds,
+            out: self.out.clone(),
+            steps: self.steps,
+            bodies: self.bodies,
+            threads: self.jobs,
+            force: self.force,
+            progress: !self.quiet,
+            solver: self.solver.solver_spec()?,
+            world: self.solver.preset_world_settings()?,
+        })
+    }
+}
+
 /// Runs `generate`.
 pub fn run(args: GenerateArgs, registry: &Registry) -> Result<(), CliError> {
-    let mut seeds = parse_seeds(&args.seeds)?;
-    if let Some(shard) = &args.shard {
-        let (k, n) = parse_shard(shard)?;
-        seeds.retain(|s| s % n == k);
-    }
-    let config = GenerateConfig {
-        seeds,
-        out: args.out.clone(),
-        steps: args.steps,
-        bodies: args.bodies,
-        threads: args.jobs,
-        force: args.force,
-        progress: !args.quiet,
-        solver: args.solver.solver_spec()?,
-        world: args.solver.preset_world_settings()?,
-    };
+    let config = args.config()?;
     let outcome = run_generate(&config, registry)?;
     if !args.quiet {
         eprintln!(

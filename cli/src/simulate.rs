@@ -9,7 +9,8 @@ use crate::common::{CliError, SolverArgs};
 /// Options of `simulate`.
 #[derive(Debug, Clone, Args)]
 pub struct SimulateArgs {
-    /// Scene: pile, pyramid, stack, resting_ball.
+    /// Scene: pile, pyramid, stack, resting_ball, thesis (the original code's world of
+    /// `--seed`, 12345–12354), or `file:PATH` (a scene file, `deepcontact_core::scene_file`).
     #[arg(long, default_value = "pile")]
     pub scene: String,
     /// Number of bodies (pile: circles, in a box scaled to keep the density).

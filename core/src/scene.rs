@@ -295,7 +295,14 @@ fn ground(width: Real) -> BodyDesc {
 }
 
 /// Names accepted by [`by_name`].
-pub const SCENES: &[&str] = &["pile", "pyramid", "stack", "resting_ball", "thesis"];
+pub const SCENES: &[&str] = &[
+    "pile",
+    "pyramid",
+    "stack",
+    "resting_ball",
+    "thesis",
+    "file:PATH",
+];
 
 /// The most circles a pile may have: placement, memory (≈ 1 KB per body with its broad-phase
 /// and solver data) and step time (≈ 25 ms per step at 10 000 bodies) grow with it, so a
@@ -306,8 +313,20 @@ pub const MAX_BODIES: usize = 1_000_000;
 pub const MAX_STACK: usize = 1_000;
 
 /// A scene by name: `pile` (uses `seed` and `bodies`), `pyramid` (base of `bodies` boxes,
-/// 10 if `bodies` is 100), `stack` (of `bodies` boxes, 10 if 100), `resting_ball`.
+/// 10 if `bodies` is 100), `stack` (of `bodies` boxes, 10 if 100), `resting_ball`, `thesis`
+/// (the original code's world of `seed`), or `file:PATH`: the world of `seed` in the scene
+/// file at `PATH` ([`crate::scene_file`] format) in the thesis's 15 m box.
 pub fn by_name(name: &str, seed: u64, bodies: usize) -> Result<Scene, CoreError> {
+    if let Some(path) = name.strip_prefix("file:") {
+        let text = std::fs::read_to_string(path).map_err(|e| CoreError::SceneFile {
+            file: path.to_string(),
+            line: 0,
+            field: "file".into(),
+            reason: e.to_string(),
+        })?;
+        let circles = crate::scene_file::parse(&text, path)?;
+        return crate::scene_file::pile_from_circles(&circles, seed, 15.0, path);
+    }
     let small = if bodies == 100 { 10 } else { bodies };
     // A pyramid of base b holds b (b + 1) / 2 boxes, a stack b: both bounded like the pile.
     if (name == "pyramid" || name == "stack") && small > MAX_STACK {

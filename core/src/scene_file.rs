@@ -205,6 +205,24 @@ mod tests {
     }
 
     #[test]
+    fn a_scene_file_loads_by_name() {
+        let path = std::env::temp_dir().join(format!("dc_scene_{}.csv", std::process::id()));
+        std::fs::write(&path, THESIS_WORLDS_CSV).unwrap();
+        let name = format!("file:{}", path.display());
+        let from_file = crate::scene::by_name(&name, 12347, 100).unwrap();
+        let embedded = thesis_world(12347).unwrap();
+        assert_eq!(from_file.bodies.len(), embedded.bodies.len());
+        for (a, b) in from_file.bodies.iter().zip(&embedded.bodies) {
+            assert_eq!(a.position, b.position);
+        }
+        std::fs::remove_file(&path).unwrap();
+        let missing = crate::scene::by_name(&name, 12347, 100)
+            .unwrap_err()
+            .to_string();
+        assert!(missing.contains(&path.display().to_string()), "{missing}");
+    }
+
+    #[test]
     fn the_ten_thesis_worlds_load() {
         for seed in 12345..12355 {
             let s = thesis_world(seed).unwrap();

@@ -11,7 +11,8 @@ use deepcontact_core::{
 };
 use deepcontact_pgs::PgsSolver;
 use deepcontact_warmstart::{
-    ConstantWarmStart, OracleConfig, OracleWarmStart, RandomConfig, RandomWarmStart, Rounded,
+    ConstantWarmStart, OracleConfig, OracleOrder, OracleWarmStart, RandomConfig, RandomWarmStart,
+    Rounded,
 };
 
 fn provide(provider: &mut dyn WarmStart, problem: &ContactProblem) -> Vec<Impulse> {
@@ -171,6 +172,45 @@ fn copy_is_the_converged_solution_and_the_next_solve_is_nearly_free() {
         )
         .is_err()
     );
+}
+
+#[test]
+fn copy_in_another_order_answers_each_point_for_itself() {
+    // A column is statically determinate: every order reaches the same impulses, so a
+    // point answered with another point's impulse would show.
+    let problem = common::column(8);
+    let registry = baseline_registry();
+    let world = provide(&mut OracleWarmStart::pgs(), &problem);
+    for spec in ["copy:order=reversed", "copy:order=shuffled,order_seed=3"] {
+        let mut oracle = registry.build_provider(spec).unwrap();
+        let out = provide(oracle.as_mut(), &problem);
+        assert_ne!(out, world, "{spec}: the same order");
+        for (o, w) in out.iter().zip(&world) {
+            assert!((o.normal - w.normal).abs() < 1e-4, "{spec}: {o:?} vs {w:?}");
+        }
+        // Deterministic: after a reset (a new world) the same answers again.
+        oracle.reset();
+        assert_eq!(provide(oracle.as_mut(), &problem), out, "{spec}");
+    }
+    let config = OracleConfig {
+        order: OracleOrder::Shuffled(3),
+        ..OracleConfig::default()
+    };
+    let mut oracle = OracleWarmStart::new(Box::new(PgsSolver::new()), config).unwrap();
+    assert_eq!(oracle.config().order, OracleOrder::Shuffled(3));
+    // Shuffles are drawn afresh per solve: the second differs from the first.
+    let first = provide(&mut oracle, &problem);
+    let second = provide(&mut oracle, &problem);
+    assert_ne!(first, second);
+    assert!(registry.build_provider("copy:order=sideways").is_err());
+}
+
+/// The baseline providers and the PGS solver.
+fn baseline_registry() -> deepcontact_core::Registry {
+    let mut registry = deepcontact_core::Registry::empty();
+    deepcontact_pgs::register(&mut registry);
+    deepcontact_warmstart::register(&mut registry);
+    registry
 }
 
 #[test]
