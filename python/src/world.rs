@@ -3,7 +3,7 @@
 use std::sync::{Arc, Mutex};
 
 use deepcontact_core::{
-    GuardPolicy, Impulse, Observation, Real, ResidualNorm, StepReport as CoreStepReport,
+    Body, GuardPolicy, Impulse, Observation, Real, ResidualNorm, StepReport as CoreStepReport,
     VelocitySolver, WarmStart, WarmStartContext, WarmStartError, World, WorldSettings, scene,
 };
 use deepcontact_experiments::full_registry;
@@ -248,6 +248,26 @@ impl PyWorld {
             }),
             scene: scene.name,
         })
+    }
+
+    /// One value per body, as a 1-D array.
+    fn body_column<'py, T: numpy::Element>(
+        &self,
+        py: Python<'py>,
+        value: impl Fn(&Body) -> T,
+    ) -> Result<Bound<'py, PyArray1<T>>, PythonBindingError> {
+        let v: Vec<T> = self.lock()?.world.bodies().iter().map(value).collect();
+        Ok(PyArray1::from_vec(py, v))
+    }
+
+    /// A pair of values per body, as an `(n, 2)` array.
+    fn body_rows<'py>(
+        &self,
+        py: Python<'py>,
+        value: impl Fn(&Body) -> [Real; 2],
+    ) -> Result<Bound<'py, PyArray2<Real>>, PythonBindingError> {
+        let rows: Vec<[Real; 2]> = self.lock()?.world.bodies().iter().map(value).collect();
+        Ok(rows_to_python(py, &rows))
     }
 
     fn lock(&self) -> Result<std::sync::MutexGuard<'_, Inner>, PythonBindingError> {
@@ -526,14 +546,7 @@ impl PyWorld {
         &self,
         py: Python<'py>,
     ) -> Result<Bound<'py, PyArray2<Real>>, PythonBindingError> {
-        let inner = self.lock()?;
-        let rows: Vec<[Real; 2]> = inner
-            .world
-            .bodies()
-            .iter()
-            .map(|b| [b.position.x, b.position.y])
-            .collect();
-        Ok(rows_to_python(py, &rows))
+        self.body_rows(py, |b| [b.position.x, b.position.y])
     }
 
     /// Body angles (rad), shape (bodies,).
@@ -542,9 +555,7 @@ impl PyWorld {
         &self,
         py: Python<'py>,
     ) -> Result<Bound<'py, PyArray1<Real>>, PythonBindingError> {
-        let inner = self.lock()?;
-        let v: Vec<Real> = inner.world.bodies().iter().map(|b| b.angle).collect();
-        Ok(PyArray1::from_vec(py, v))
+        self.body_column(py, |b| b.angle)
     }
 
     /// Linear velocities (m/s), shape (bodies, 2).
@@ -553,14 +564,7 @@ impl PyWorld {
         &self,
         py: Python<'py>,
     ) -> Result<Bound<'py, PyArray2<Real>>, PythonBindingError> {
-        let inner = self.lock()?;
-        let rows: Vec<[Real; 2]> = inner
-            .world
-            .bodies()
-            .iter()
-            .map(|b| [b.linear_velocity.x, b.linear_velocity.y])
-            .collect();
-        Ok(rows_to_python(py, &rows))
+        self.body_rows(py, |b| [b.linear_velocity.x, b.linear_velocity.y])
     }
 
     /// Angular velocities (rad/s), shape (bodies,).
@@ -569,14 +573,7 @@ impl PyWorld {
         &self,
         py: Python<'py>,
     ) -> Result<Bound<'py, PyArray1<Real>>, PythonBindingError> {
-        let inner = self.lock()?;
-        let v: Vec<Real> = inner
-            .world
-            .bodies()
-            .iter()
-            .map(|b| b.angular_velocity)
-            .collect();
-        Ok(PyArray1::from_vec(py, v))
+        self.body_column(py, |b| b.angular_velocity)
     }
 
     /// Masses (kg; 0 for static bodies), shape (bodies,).
@@ -585,9 +582,7 @@ impl PyWorld {
         &self,
         py: Python<'py>,
     ) -> Result<Bound<'py, PyArray1<Real>>, PythonBindingError> {
-        let inner = self.lock()?;
-        let v: Vec<Real> = inner.world.bodies().iter().map(|b| b.mass).collect();
-        Ok(PyArray1::from_vec(py, v))
+        self.body_column(py, |b| b.mass)
     }
 
     /// Whether each body is dynamic, shape (bodies,).
@@ -596,14 +591,7 @@ impl PyWorld {
         &self,
         py: Python<'py>,
     ) -> Result<Bound<'py, PyArray1<bool>>, PythonBindingError> {
-        let inner = self.lock()?;
-        let v: Vec<bool> = inner
-            .world
-            .bodies()
-            .iter()
-            .map(|b| b.is_dynamic())
-            .collect();
-        Ok(PyArray1::from_vec(py, v))
+        self.body_column(py, |b| b.is_dynamic())
     }
 
     /// Total kinetic energy of the dynamic bodies (J).
