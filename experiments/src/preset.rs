@@ -12,9 +12,14 @@
 //! | `copy`, `copy2`, `copy0` | solve to 1e-6, cap 10 000, ∞-norm | cold solve by the world's rule: 1e-4, cap 1 000, contact norm | the oracle should be near-exact |
 //! | warm start outside the friction cone | projected onto `\|λt\| ≤ μ λn` | applied raw (`pgs:start=raw`) | a start outside the cone is not a feasible iterate |
 //!
-//! Not reproduced (see docs/THESIS.md): float32 arithmetic, Box2D v2.3's island sweep order,
-//! the closed chain loop with its 2 × slop skin (ours: four segments), the `copy` oracle as a
-//! fresh world of its own (ours solves the same island problem).
+//! Not reproduced (docs/THESIS.md measures each on the original engine rebuilt here): float32
+//! arithmetic (the original rebuilt in float64 moves its builtin/none by −0.016, away from
+//! ours), Box2D v2.3's island sweep order (it depends on when the broad phase created each
+//! contact, a history this engine does not keep; the original sweeping our pair order stays at
+//! its own ratio), the closed chain loop with its 2 × slop skin (ours: four segments), the
+//! `copy` oracle as a fresh world of its own (its contact order costs the original's copy2 +23
+//! iterations; ours solves the same island problem, `order=world`, because another order —
+//! `order=reversed|shuffled` — does not reproduce the effect here).
 
 use deepcontact_core::registry::Spec;
 use deepcontact_core::{Real, ResidualNorm, WorldSettings};
