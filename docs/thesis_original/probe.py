@@ -10,6 +10,9 @@ Build the original as ../shared/thesis_original/README.md says, then, from the p
     $PY docs/thesis_original/probe.py --repo $ORIG --out DIR copy --methods copy2,twin2 [--perturb P]
     $PY docs/thesis_original/probe.py --repo $ORIG --out DIR order
 
+Options before the subcommand: --round-start (start a float64 build of the engine from the
+float32 worlds) and --no-skin (the box's chain loop moved out by its 1 mm skin).
+
 Subcommands:
 
 timing  ms per step of each method on the ten worlds, timed as the thesis's run_world times
@@ -482,6 +485,9 @@ def main():
     ap.add_argument("--round-start", action="store_true",
                     help="round the initial positions to float32 (for an engine built with "
                          "`typedef double float32`, which would keep numpy's doubles)")
+    ap.add_argument("--no-skin", action="store_true",
+                    help="move the box's chain loop out by its skin radius (2 x slop), so the "
+                         "walls' surface lies at 0 and 15 m as in our engine")
     sub = ap.add_subparsers(dest="cmd", required=True)
     t = sub.add_parser("timing")
     t.add_argument("--methods", default="none,builtin,random,bad,copy,copy2,copy0")
@@ -497,6 +503,17 @@ def main():
     args = ap.parse_args()
     o = load(args.repo)
     o["round_start"] = args.round_start
+    if args.no_skin:
+        import src.gen_world as gen_world
+        box = gen_world.create_fixed_box
+
+        def outward(world, p_ll, p_hr, pos=(0, 0)):
+            # the loop's surface (vertices + 2 x slop skin) at the box's walls, as ours
+            skin = o["Box2D"].b2_polygonRadius
+            box(world, o["b2Vec2"](p_ll[0] - skin, p_ll[1] - skin),
+                o["b2Vec2"](p_hr[0] + skin, p_hr[1] + skin), pos)
+
+        gen_world.create_fixed_box = outward
     os.makedirs(args.out, exist_ok=True)
     result = {"timing": cmd_timing, "chaos": cmd_chaos, "copy": cmd_copy,
               "order": cmd_order}[args.cmd](o, args)

@@ -16,7 +16,8 @@
 //! arithmetic (the original rebuilt in float64 moves its builtin/none by −0.016, away from
 //! ours), Box2D v2.3's island sweep order (it depends on when the broad phase created each
 //! contact, a history this engine does not keep; the original sweeping our pair order stays at
-//! its own ratio), the closed chain loop with its 2 × slop skin (ours: four segments), the
+//! its own ratio), the closed chain loop with its 2 × slop skin (ours: four segments; the
+//! original without the skin stays at its own ratio), the
 //! `copy` oracle as a fresh world of its own (its contact order costs the original's copy2 +23
 //! iterations; ours solves the same island problem, `order=world`, because another order —
 //! `order=reversed|shuffled` — does not reproduce the effect here).
