@@ -11,7 +11,8 @@ Build the original as ../shared/thesis_original/README.md says, then, from the p
     $PY docs/thesis_original/probe.py --repo $ORIG --out DIR order
 
 Options before the subcommand: --round-start (start a float64 build of the engine from the
-float32 worlds) and --no-skin (the box's chain loop moved out by its 1 mm skin).
+float32 worlds), --no-skin (the box's chain loop moved out by its 1 mm skin) and --edges (the
+box as four separate edges, surface at the walls).
 
 Subcommands:
 
@@ -488,6 +489,9 @@ def main():
     ap.add_argument("--no-skin", action="store_true",
                     help="move the box's chain loop out by its skin radius (2 x slop), so the "
                          "walls' surface lies at 0 and 15 m as in our engine")
+    ap.add_argument("--edges", action="store_true",
+                    help="the box as four separate edge fixtures (no chain loop, no ghost "
+                         "vertices), their surface at 0 and 15 m as in our engine")
     sub = ap.add_subparsers(dest="cmd", required=True)
     t = sub.add_parser("timing")
     t.add_argument("--methods", default="none,builtin,random,bad,copy,copy2,copy0")
@@ -514,6 +518,25 @@ def main():
                 o["b2Vec2"](p_hr[0] + skin, p_hr[1] + skin), pos)
 
         gen_world.create_fixed_box = outward
+    if args.edges:
+        import src.gen_world as gen_world
+
+        def edges(world, p_ll, p_hr, pos=(0, 0)):
+            # four separate edges (no ghost vertices), their surface at 0 and 15 m as ours
+            B = o["Box2D"]
+            skin = B.b2_polygonRadius
+            x0, y0 = p_ll[0] - skin, p_ll[1] - skin
+            x1, y1 = p_hr[0] + skin, p_hr[1] + skin
+            v = [(x1, y0), (x1, y1), (x0, y1), (x0, y0)]
+            fixtures = [B.b2FixtureDef(shape=B.b2EdgeShape(vertices=[v[i], v[(i + 1) % 4]]),
+                                       density=1, friction=0.5, restitution=0)
+                        for i in range(4)]
+            box = world.CreateStaticBody(position=pos, fixtures=fixtures)
+            box.sleepingAllowed = False
+            box.userData = gen_world.BodyData()
+            box.userData.shape = "edges"
+
+        gen_world.create_fixed_box = edges
     os.makedirs(args.out, exist_ok=True)
     result = {"timing": cmd_timing, "chaos": cmd_chaos, "copy": cmd_copy,
               "order": cmd_order}[args.cmd](o, args)
