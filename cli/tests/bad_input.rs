@@ -70,6 +70,32 @@ fn cases(dir: &Path) -> Vec<Case> {
     std::fs::write(&blocked, b"a file where a directory should be").unwrap();
     let blocked = blocked.join("results").display().to_string();
 
+    // Scene files (`--scene file:PATH`): each bad one names the file, the line and the field.
+    let header = "world,seed,body_index,x,y,radius\n";
+    let scene = |name: &str, text: &str| {
+        let path = dir.join(name);
+        std::fs::write(&path, text).unwrap();
+        format!("file:{}", path.display())
+    };
+    let empty = scene("empty.csv", "");
+    let cut = scene("truncated.csv", &format!("{header}0,7,0,2,1,0.5\n0,7,1,2"));
+    let word = scene("word.csv", &format!("{header}0,7,0,two,1,0.5\n"));
+    let inf = scene("inf.csv", &format!("{header}0,7,0,2,inf,0.5\n"));
+    let overlapping = scene(
+        "overlap.csv",
+        &format!("{header}0,7,0,2,1,0.5\n0,7,1,2.5,1,0.5\n"),
+    );
+    let outside = scene("outside.csv", &format!("{header}0,7,0,20,1,0.5\n"));
+    let huge_path = dir.join("huge.csv");
+    // Sparse: 200 MiB on paper, nothing on disk.
+    std::fs::File::create(&huge_path)
+        .unwrap()
+        .set_len(200 << 20)
+        .unwrap();
+    let huge = format!("file:{}", huge_path.display());
+    let missing = format!("file:{}", dir.join("missing.csv").display());
+    let other_seed = scene("seed7.csv", &format!("{header}0,7,0,2,1,0.5\n"));
+
     fn sim<'a>(extra: &[&'a str]) -> Vec<&'a str> {
         let mut v = vec!["simulate", "--steps", "2"];
         v.extend_from_slice(extra);
@@ -224,6 +250,47 @@ fn cases(dir: &Path) -> Vec<Case> {
             "bad shard",
             &["generate", "--shard", "4/4", "--out", &out, "--quiet"],
             "4/4",
+        ),
+        case("empty scene file", &sim(&["--scene", &empty]), "empty"),
+        case(
+            "truncated scene file",
+            &sim(&["--scene", &cut, "--seed", "7"]),
+            "line 3, field line",
+        ),
+        case(
+            "non-numeric field in a scene file",
+            &sim(&["--scene", &word, "--seed", "7"]),
+            "line 2, field x",
+        ),
+        case(
+            "non-finite field in a scene file",
+            &sim(&["--scene", &inf, "--seed", "7"]),
+            "line 2, field y",
+        ),
+        case(
+            "overlapping circles in a scene file",
+            &sim(&["--scene", &overlapping, "--seed", "7"]),
+            "line 3, field x",
+        ),
+        case(
+            "circle outside the box in a scene file",
+            &sim(&["--scene", &outside, "--seed", "7"]),
+            "line 2, field x",
+        ),
+        case(
+            "huge scene file (200 MiB)",
+            &sim(&["--scene", &huge, "--seed", "7"]),
+            "MAX_FILE_BYTES",
+        ),
+        case(
+            "missing scene file",
+            &sim(&["--scene", &missing]),
+            "missing.csv",
+        ),
+        case(
+            "scene file without the requested seed",
+            &sim(&["--scene", &other_seed, "--seed", "8"]),
+            "seed 8",
         ),
         case(
             "a hundred million round-trip worlds (hung before the ceiling)",

@@ -318,13 +318,7 @@ pub const MAX_STACK: usize = 1_000;
 /// file at `PATH` ([`crate::scene_file`] format) in the thesis's 15 m box.
 pub fn by_name(name: &str, seed: u64, bodies: usize) -> Result<Scene, CoreError> {
     if let Some(path) = name.strip_prefix("file:") {
-        let text = std::fs::read_to_string(path).map_err(|e| CoreError::SceneFile {
-            file: path.to_string(),
-            line: 0,
-            field: "file".into(),
-            reason: e.to_string(),
-        })?;
-        let circles = crate::scene_file::parse(&text, path)?;
+        let circles = crate::scene_file::load(path)?;
         return crate::scene_file::pile_from_circles(&circles, seed, 15.0, path);
     }
     let small = if bodies == 100 { 10 } else { bodies };
