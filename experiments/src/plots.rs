@@ -31,8 +31,9 @@ fn ensure_font() -> Result<(), String> {
         .clone()
 }
 
-/// Ten distinct colours (matplotlib's `tab10`), assigned to series in order.
-pub const PALETTE: [RGBColor; 10] = [
+/// Twenty distinct colours (matplotlib's `tab10`, then the light half of `tab20`), assigned
+/// to series in order.
+pub const PALETTE: [RGBColor; 20] = [
     RGBColor(31, 119, 180),
     RGBColor(255, 127, 14),
     RGBColor(44, 160, 44),
@@ -43,9 +44,19 @@ pub const PALETTE: [RGBColor; 10] = [
     RGBColor(127, 127, 127),
     RGBColor(188, 189, 34),
     RGBColor(23, 190, 207),
+    RGBColor(174, 199, 232),
+    RGBColor(255, 187, 120),
+    RGBColor(152, 223, 138),
+    RGBColor(255, 152, 150),
+    RGBColor(197, 176, 213),
+    RGBColor(196, 156, 148),
+    RGBColor(247, 182, 210),
+    RGBColor(199, 199, 199),
+    RGBColor(219, 219, 141),
+    RGBColor(158, 218, 229),
 ];
 
-/// The colour of series number `i` (the palette repeats after ten).
+/// The colour of series number `i` (the palette repeats after twenty).
 pub fn color(i: usize) -> RGBColor {
     PALETTE[i % PALETTE.len()]
 }

@@ -23,14 +23,19 @@ fn per_step(
         .collect()
 }
 
-/// The thesis's groups of providers (Figures 20–28): `(file stem, members)`. Each group present
-/// gets its own iterations figure, with `none` and `builtin` as references.
-pub const THESIS_GROUPS: [(&str, &[&str]); 5] = [
+/// The groups of providers with a figure of their own, `(file stem, members)`: the thesis's
+/// (Figures 20–28), then the classical contenders of docs/RESEARCH.md. Each group present gets
+/// its own iterations figure, with `none` and `builtin` as references.
+pub const FIGURE_GROUPS: [(&str, &[&str]); 6] = [
     ("iterations_none_builtin", &["none", "builtin"]),
     ("iterations_random_bad_copy", &["random", "bad", "copy"]),
     ("iterations_copy2_copy0", &["copy2", "copy0"]),
     ("iterations_grid", &["grid"]),
     ("iterations_cnn", &["pressure", "peak"]),
+    (
+        "iterations_contenders",
+        &["extrapolate", "shock", "tail", "krylov", "best"],
+    ),
 ];
 
 const STEP_LABEL: &str = "step (dt = 0.01 s)";
@@ -238,7 +243,7 @@ pub fn figures(results: &Results, curves: &[Curve], s: usize) -> Vec<(&'static s
             ),
         ),
     ];
-    for (stem, members) in THESIS_GROUPS {
+    for (stem, members) in FIGURE_GROUPS {
         let own: Vec<usize> = members.iter().flat_map(|m| v.named(m)).collect();
         if own.is_empty() {
             continue;
