@@ -5,6 +5,7 @@ use deepcontact_core::{
 };
 
 use crate::by_contact::StartsByContact;
+use crate::rows::in_cone;
 
 /// `λ_t + α (λ_t − λ_{t−1})` by contact id: if a point's impulse grew last step it is
 /// expected to grow again (a load arriving from above, a body sliding to rest). Points seen
@@ -67,13 +68,11 @@ impl WarmStart for ExtrapolatedWarmStart {
         let points = ctx.problem.points.iter().zip(seen.solved).zip(ctx.carried);
         for ((p, now), carried) in points {
             let start = match carried {
-                Some(old) => {
-                    let normal = (now.normal + self.alpha * (now.normal - old.normal)).max(0.0);
-                    let bound = p.friction * normal;
-                    let tangent = (now.tangent + self.alpha * (now.tangent - old.tangent))
-                        .clamp(-bound, bound);
-                    Impulse::new(normal, tangent)
-                }
+                Some(old) => in_cone(
+                    now.normal + self.alpha * (now.normal - old.normal),
+                    now.tangent + self.alpha * (now.tangent - old.tangent),
+                    p.friction,
+                ),
                 None => *now,
             };
             self.starts.insert(p.id, start);

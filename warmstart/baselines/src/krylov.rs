@@ -16,7 +16,7 @@ use deepcontact_core::{
     Impulse, Real, SpecError, Velocity, WarmStart, WarmStartContext, WarmStartError,
 };
 
-use crate::rows::{apply_jt, row, row_velocity, velocities_after};
+use crate::rows::{apply_jt, in_cone, row, row_velocity, velocities_after};
 
 /// Parameters of [`KrylovWarmStart`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -186,10 +186,11 @@ impl WarmStart for KrylovWarmStart {
             }
         }
         for (i, (o, p)) in out.iter_mut().zip(&problem.points).enumerate() {
-            let normal = (o.normal + self.x[2 * i]).max(0.0);
-            let bound = p.friction * normal;
-            let tangent = (o.tangent + self.x[2 * i + 1]).clamp(-bound, bound);
-            *o = Impulse::new(normal, tangent);
+            *o = in_cone(
+                o.normal + self.x[2 * i],
+                o.tangent + self.x[2 * i + 1],
+                p.friction,
+            );
         }
         Ok(())
     }

@@ -7,6 +7,14 @@
 use deepcontact_core::math::{cross, cross_sv};
 use deepcontact_core::{ContactProblem, Impulse, Real, Vector, Velocity};
 
+/// `(normal, tangent)` projected onto the friction cone of coefficient `friction`:
+/// `λn ≥ 0`, `|λt| ≤ μ λn`.
+pub(crate) fn in_cone(normal: Real, tangent: Real, friction: Real) -> Impulse {
+    let normal = normal.max(0.0);
+    let bound = friction * normal;
+    Impulse::new(normal, tangent.clamp(-bound, bound))
+}
+
 /// Row `k`'s direction, bodies A and B, anchors and effective mass.
 pub(crate) fn row(
     problem: &ContactProblem,

@@ -5,6 +5,8 @@ use deepcontact_core::{
     Impulse, Real, SpecError, Vector, WarmStart, WarmStartContext, WarmStartError,
 };
 
+use crate::rows::in_cone;
+
 /// A static load estimate in the spirit of shock propagation (Guendelman et al. 2003):
 /// bodies are visited from the top down (along −gravity); each must lose its downward free
 /// momentum `m max(0, −v_free·up)` plus the load the bodies above pass to it, and hands that
@@ -139,11 +141,11 @@ impl WarmStart for ShockWarmStart {
         let points = ctx.problem.points.iter().zip(&self.estimate);
         for (i, (o, (p, &estimate))) in out.iter_mut().zip(points).enumerate() {
             *o = match ctx.carried.get(i).copied().flatten() {
-                Some(c) => {
-                    let normal = (1.0 - self.blend) * c.normal + self.blend * estimate;
-                    let bound = p.friction * normal;
-                    Impulse::new(normal, c.tangent.clamp(-bound, bound))
-                }
+                Some(c) => in_cone(
+                    (1.0 - self.blend) * c.normal + self.blend * estimate,
+                    c.tangent,
+                    p.friction,
+                ),
                 None => Impulse::new(estimate, 0.0),
             };
         }

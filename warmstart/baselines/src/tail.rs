@@ -15,6 +15,7 @@ use deepcontact_core::{
 };
 
 use crate::by_contact::StartsByContact;
+use crate::rows::in_cone;
 
 /// Parameters of [`TailWarmStart`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -198,10 +199,12 @@ impl WarmStart for TailWarmStart {
         for (((p, s), l), b) in points.zip(&self.lambda).zip(&self.before) {
             let tail_n = l.normal + gain * (l.normal - b.normal) - s.normal;
             let tail_t = l.tangent + gain * (l.tangent - b.tangent) - s.tangent;
-            let normal = (s.normal + factor * tail_n).max(0.0);
-            let bound = p.friction * normal;
-            let tangent = (s.tangent + factor * tail_t).clamp(-bound, bound);
-            self.starts.insert(p.id, Impulse::new(normal, tangent));
+            let start = in_cone(
+                s.normal + factor * tail_n,
+                s.tangent + factor * tail_t,
+                p.friction,
+            );
+            self.starts.insert(p.id, start);
         }
     }
 
