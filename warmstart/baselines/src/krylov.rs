@@ -13,7 +13,7 @@
 //! wrong.
 
 use deepcontact_core::{
-    Impulse, Real, SpecError, Velocity, WarmStart, WarmStartContext, WarmStartError,
+    ContactProblem, Impulse, Real, SpecError, Velocity, WarmStart, WarmStartContext, WarmStartError,
 };
 
 use crate::rows::{apply_jt, in_cone, row, row_velocity, velocities_after};
@@ -25,6 +25,9 @@ pub struct KrylovConfig {
     pub iterations: u32,
     /// Whether friction rows of sticking points join the system (default true).
     pub friction: bool,
+    /// Rounds of (active set of the current start → CG → projection) (default 1, in
+    /// 1..=[`KrylovWarmStart::MAX_ROUNDS`]).
+    pub rounds: u32,
 }
 
 impl Default for KrylovConfig {
@@ -32,6 +35,7 @@ impl Default for KrylovConfig {
         Self {
             iterations: 10,
             friction: true,
+            rounds: 1,
         }
     }
 }
@@ -63,8 +67,20 @@ impl KrylovWarmStart {
     /// Most conjugate-gradient steps per island (each costs about two PGS iterations).
     pub const MAX_ITERATIONS: u32 = 10_000;
 
-    /// A provider under `config` (validated: 1 to `MAX_ITERATIONS` steps).
+    /// Most rounds per island.
+    pub const MAX_ROUNDS: u32 = 100;
+
+    /// A provider under `config` (validated: 1 to `MAX_ITERATIONS` steps, 1 to `MAX_ROUNDS`
+    /// rounds).
     pub fn new(config: KrylovConfig) -> Result<Self, SpecError> {
+        if !(1..=Self::MAX_ROUNDS).contains(&config.rounds) {
+            return Err(SpecError::InvalidParameter {
+                spec: "krylov".into(),
+                param: "rounds".into(),
+                value: config.rounds.to_string(),
+                reason: "must be in 1..=100".into(),
+            });
+        }
         if !(1..=Self::MAX_ITERATIONS).contains(&config.iterations) {
             return Err(SpecError::InvalidParameter {
                 spec: "krylov".into(),
@@ -89,55 +105,34 @@ impl KrylovWarmStart {
     pub fn config(&self) -> &KrylovConfig {
         &self.config
     }
-}
 
-impl WarmStart for KrylovWarmStart {
-    fn name(&self) -> &str {
-        "krylov"
-    }
-
-    fn warm_start(
-        &mut self,
-        ctx: &WarmStartContext<'_>,
-        out: &mut [Impulse],
-    ) -> Result<(), WarmStartError> {
-        let problem = ctx.problem;
-        let n = problem.points.len();
-        for (i, o) in out.iter_mut().enumerate() {
-            *o = ctx.carried_or_zero(i);
-        }
-        if n == 0 {
-            return Ok(());
-        }
-        let rows = 2 * n;
+    /// The active set of `start`: loaded normal rows, and the friction rows of loaded points
+    /// strictly inside the cone (when friction joins).
+    fn select_active(&mut self, problem: &ContactProblem, start: &[Impulse]) {
+        let friction = self.config.friction;
         self.active.clear();
-        self.active.extend((0..rows).map(|k| {
-            let (imp, p) = (out[k / 2], &problem.points[k / 2]);
+        self.active.extend((0..2 * start.len()).map(|k| {
+            let (imp, p) = (start[k / 2], &problem.points[k / 2]);
             let loaded = imp.normal > 0.0;
             if k % 2 == 0 {
                 loaded
             } else {
-                self.config.friction && loaded && imp.tangent.abs() < p.friction * imp.normal
+                friction && loaded && imp.tangent.abs() < p.friction * imp.normal
             }
         }));
-        for buf in [
-            &mut self.x,
-            &mut self.r,
-            &mut self.z,
-            &mut self.p,
-            &mut self.q,
-        ] {
+    }
+
+    /// The preconditioned residual at `start` on the active rows, `r = −(J v(start) − b)`,
+    /// `z = D⁻¹ r` with D the rows' own `W_kk`, `p = z`; returns `rᵀz`. Clears `x`.
+    fn residual(&mut self, problem: &ContactProblem, start: &[Impulse]) -> Real {
+        let rows = 2 * start.len();
+        for buf in [&mut self.r, &mut self.z, &mut self.p, &mut self.q] {
             buf.clear();
             buf.resize(rows, 0.0);
         }
-        // Velocities after the carried impulses: free velocities + M⁻¹ Jᵀ λc.
-        velocities_after(problem, out, &mut self.x, &mut self.dv);
-        // r = −(J v − target) on the active rows; z = D⁻¹ r with D the rows' own W_kk.
+        velocities_after(problem, start, &mut self.x, &mut self.dv);
         let mut rz = 0.0;
-        for k in 0..rows {
-            if !self.active[k] {
-                continue;
-            }
+        for k in (0..rows).filter(|&k| self.active[k]) {
             let target = if k % 2 == 0 {
                 problem.points[k / 2].velocity_bias
             } else {
@@ -148,7 +143,14 @@ impl WarmStart for KrylovWarmStart {
             self.p[k] = self.z[k];
             rz += self.r[k] * self.z[k];
         }
-        self.x.fill(0.0);
+        self.x.clear();
+        self.x.resize(rows, 0.0);
+        rz
+    }
+
+    /// `iterations` Jacobi-preconditioned CG steps on `W_AA x = r` from `x = 0`.
+    fn conjugate_gradient(&mut self, problem: &ContactProblem, mut rz: Real) {
+        let rows = self.x.len();
         for _ in 0..self.config.iterations {
             if rz <= 0.0 {
                 break;
@@ -168,10 +170,7 @@ impl WarmStart for KrylovWarmStart {
             }
             let alpha = rz / pq;
             let mut rz_new = 0.0;
-            for k in 0..rows {
-                if !self.active[k] {
-                    continue;
-                }
+            for k in (0..rows).filter(|&k| self.active[k]) {
                 self.x[k] += alpha * self.p[k];
                 self.r[k] -= alpha * self.q[k];
                 self.z[k] = row(problem, k).5 * self.r[k];
@@ -179,18 +178,40 @@ impl WarmStart for KrylovWarmStart {
             }
             let beta = rz_new / rz;
             rz = rz_new;
-            for k in 0..rows {
-                if self.active[k] {
-                    self.p[k] = self.z[k] + beta * self.p[k];
-                }
+            for k in (0..rows).filter(|&k| self.active[k]) {
+                self.p[k] = self.z[k] + beta * self.p[k];
             }
         }
-        for (i, (o, p)) in out.iter_mut().zip(&problem.points).enumerate() {
-            *o = in_cone(
-                o.normal + self.x[2 * i],
-                o.tangent + self.x[2 * i + 1],
-                p.friction,
-            );
+    }
+}
+
+impl WarmStart for KrylovWarmStart {
+    fn name(&self) -> &str {
+        "krylov"
+    }
+
+    fn warm_start(
+        &mut self,
+        ctx: &WarmStartContext<'_>,
+        out: &mut [Impulse],
+    ) -> Result<(), WarmStartError> {
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = ctx.carried_or_zero(i);
+        }
+        if out.is_empty() {
+            return Ok(());
+        }
+        for _ in 0..self.config.rounds {
+            self.select_active(ctx.problem, out);
+            let rz = self.residual(ctx.problem, out);
+            self.conjugate_gradient(ctx.problem, rz);
+            for (i, (o, p)) in out.iter_mut().zip(&ctx.problem.points).enumerate() {
+                *o = in_cone(
+                    o.normal + self.x[2 * i],
+                    o.tangent + self.x[2 * i + 1],
+                    p.friction,
+                );
+            }
         }
         Ok(())
     }

@@ -52,12 +52,13 @@ pub fn register(registry: &mut Registry) {
     );
     registry.register_provider(
         "krylov",
-        "builtin plus conjugate-gradient steps on the carried active set; iterations=10, friction=true",
+        "builtin plus conjugate-gradient steps on the carried active set; iterations=10, friction=true, rounds=1",
         |p, _| {
             let d = KrylovConfig::default();
             let config = KrylovConfig {
                 iterations: u32_param(p, "iterations", d.iterations)?,
                 friction: p.choice("friction", &["true", "false"])? != Some("false"),
+                rounds: u32_param(p, "rounds", d.rounds)?,
             };
             Ok(Box::new(KrylovWarmStart::new(config)?))
         },

@@ -175,13 +175,28 @@ fn krylov_corrects_a_carried_start_that_misses_the_load() {
         );
     }
     assert!(from_krylov.1.iterations < from_carried.1.iterations);
-    assert!(
-        KrylovWarmStart::new(KrylovConfig {
-            iterations: 0,
-            friction: true
-        })
-        .is_err()
+    for (iterations, rounds) in [(0, 1), (10_001, 1), (10, 0), (10, 101)] {
+        let config = KrylovConfig {
+            iterations,
+            rounds,
+            ..KrylovConfig::default()
+        };
+        assert!(KrylovWarmStart::new(config).is_err());
+    }
+    // A second round from the corrected start keeps the exact answer.
+    let two = KrylovConfig {
+        rounds: 2,
+        ..KrylovConfig::default()
+    };
+    let again = start_of(
+        &mut KrylovWarmStart::new(two).unwrap(),
+        &problem,
+        &carried,
+        1,
     );
+    for (got, want) in again.iter().zip(&answer) {
+        assert!((got.normal - want.normal).abs() < 1e-9);
+    }
 }
 
 #[test]
