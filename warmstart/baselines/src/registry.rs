@@ -21,6 +21,13 @@ use crate::{
 /// assert!(registry.provider_info("copy2").unwrap().oracle);
 /// ```
 pub fn register(registry: &mut Registry) {
+    register_thesis_baselines(registry);
+    register_oracles(registry);
+    register_contenders(registry);
+}
+
+/// `none`, `builtin`, `random` and `bad`.
+fn register_thesis_baselines(registry: &mut Registry) {
     registry.register_provider("none", "zeros (cold start)", |_, _| {
         Ok(Box::new(ZeroWarmStart))
     });
@@ -29,6 +36,75 @@ pub fn register(registry: &mut Registry) {
         "last step's impulses matched by contact id",
         |_, _| Ok(Box::new(CarriedWarmStart)),
     );
+    registry.register_provider(
+        "random",
+        "normal U(normal_min, normal_max), tangent U(-tangent_max, tangent_max), seeded; \
+         seed=0, normal_min=0, normal_max=5, tangent_max=2",
+        |p, _| {
+            let d = RandomConfig::default();
+            let config = RandomConfig {
+                seed: p.u64("seed", d.seed)?,
+                normal_min: p.f64("normal_min", d.normal_min)?,
+                normal_max: p.f64("normal_max", d.normal_max)?,
+                tangent_max: p.f64("tangent_max", d.tangent_max)?,
+            };
+            Ok(Box::new(RandomWarmStart::new(config)?))
+        },
+    );
+    registry.register_provider(
+        "bad",
+        "the same impulse everywhere; value=50 sets both, normal= and tangent= override one",
+        |p, _| {
+            let value = p.f64("value", ConstantWarmStart::BAD.normal)?;
+            let normal = p.f64("normal", value)?;
+            let tangent = p.f64("tangent", value)?;
+            Ok(Box::new(ConstantWarmStart::new(
+                "bad",
+                Impulse::new(normal, tangent),
+            )?))
+        },
+    );
+}
+
+/// `copy`, `copy2` and `copy0`.
+fn register_oracles(registry: &mut Registry) {
+    registry.register_provider(
+        "copy",
+        ProviderInfo::new(
+            "oracle: solve this step's problem first and start from that; \
+             solver=pgs, tolerance=1e-6, max_iterations=10000, norm=inf|l2|contact, order=world|reversed|shuffled, order_seed=0, decimals= (round, as copy2/copy0)",
+        )
+        .oracle(),
+        |p, r| {
+            let oracle = build_oracle(p, r)?;
+            if p.string("decimals").is_none() {
+                return Ok(Box::new(oracle));
+            }
+            let decimals = p.u64("decimals", 0)?;
+            let decimals = decimals_u32(p.name(), decimals)?;
+            Ok(Box::new(Rounded::new(oracle, decimals)?))
+        },
+    );
+    registry.register_provider(
+        "copy2",
+        ProviderInfo::new(
+            "copy rounded to 2 decimals; solver=pgs, tolerance=1e-6, max_iterations=10000, norm=inf|l2|contact, order=world|reversed|shuffled, order_seed=0",
+        )
+        .oracle(),
+        |p, r| Ok(Box::new(Rounded::new(build_oracle(p, r)?, 2)?)),
+    );
+    registry.register_provider(
+        "copy0",
+        ProviderInfo::new(
+            "copy rounded to 0 decimals (normals clamped to >= 0); solver=pgs, tolerance=1e-6, max_iterations=10000, norm=inf|l2|contact, order=world|reversed|shuffled, order_seed=0",
+        )
+        .oracle(),
+        |p, r| Ok(Box::new(Rounded::new(build_oracle(p, r)?, 0)?)),
+    );
+}
+
+/// The classical contenders of docs/RESEARCH.md: `tail`, `extrapolate`, `krylov`, `shock`, `best`.
+fn register_contenders(registry: &mut Registry) {
     registry.register_provider(
         "tail",
         "builtin plus the extrapolated rest of last step's solve (Aitken along the slow mode); \
@@ -80,67 +156,6 @@ pub fn register(registry: &mut Registry) {
                 .collect::<Result<Vec<_>, _>>()?;
             Ok(Box::new(BestOfWarmStart::new(candidates)?))
         },
-    );
-    registry.register_provider(
-        "random",
-        "normal U(normal_min, normal_max), tangent U(-tangent_max, tangent_max), seeded; \
-         seed=0, normal_min=0, normal_max=5, tangent_max=2",
-        |p, _| {
-            let d = RandomConfig::default();
-            let config = RandomConfig {
-                seed: p.u64("seed", d.seed)?,
-                normal_min: p.f64("normal_min", d.normal_min)?,
-                normal_max: p.f64("normal_max", d.normal_max)?,
-                tangent_max: p.f64("tangent_max", d.tangent_max)?,
-            };
-            Ok(Box::new(RandomWarmStart::new(config)?))
-        },
-    );
-    registry.register_provider(
-        "bad",
-        "the same impulse everywhere; value=50 sets both, normal= and tangent= override one",
-        |p, _| {
-            let value = p.f64("value", ConstantWarmStart::BAD.normal)?;
-            let normal = p.f64("normal", value)?;
-            let tangent = p.f64("tangent", value)?;
-            Ok(Box::new(ConstantWarmStart::new(
-                "bad",
-                Impulse::new(normal, tangent),
-            )?))
-        },
-    );
-    registry.register_provider(
-        "copy",
-        ProviderInfo::new(
-            "oracle: solve this step's problem first and start from that; \
-             solver=pgs, tolerance=1e-6, max_iterations=10000, norm=inf|l2|contact, order=world|reversed|shuffled, order_seed=0, decimals= (round, as copy2/copy0)",
-        )
-        .oracle(),
-        |p, r| {
-            let oracle = build_oracle(p, r)?;
-            if p.string("decimals").is_none() {
-                return Ok(Box::new(oracle));
-            }
-            let decimals = p.u64("decimals", 0)?;
-            let decimals = decimals_u32(p.name(), decimals)?;
-            Ok(Box::new(Rounded::new(oracle, decimals)?))
-        },
-    );
-    registry.register_provider(
-        "copy2",
-        ProviderInfo::new(
-            "copy rounded to 2 decimals; solver=pgs, tolerance=1e-6, max_iterations=10000, norm=inf|l2|contact, order=world|reversed|shuffled, order_seed=0",
-        )
-        .oracle(),
-        |p, r| Ok(Box::new(Rounded::new(build_oracle(p, r)?, 2)?)),
-    );
-    registry.register_provider(
-        "copy0",
-        ProviderInfo::new(
-            "copy rounded to 0 decimals (normals clamped to >= 0); solver=pgs, tolerance=1e-6, max_iterations=10000, norm=inf|l2|contact, order=world|reversed|shuffled, order_seed=0",
-        )
-        .oracle(),
-        |p, r| Ok(Box::new(Rounded::new(build_oracle(p, r)?, 0)?)),
     );
 }
 
