@@ -149,12 +149,19 @@ pub fn run(py: Python<'_>, args: CompareArgs) -> Result<Py<PyList>, PythonBindin
         let dir = dir.clone();
         py.detach(|| compare::write_outputs(&results, &dir, args.figures))?;
     }
-    let rows = compare::summarize(&results);
-    let json = serde_json::to_value(&rows)
+    summary_rows(py, &compare::summarize(&results))
+}
+
+/// The summary rows as dicts, in the column order of summary.csv.
+fn summary_rows(
+    py: Python<'_>,
+    rows: &[compare::Summary],
+) -> Result<Py<PyList>, PythonBindingError> {
+    let json = serde_json::to_value(rows)
         .map_err(|e| PythonBindingError::Invalid(format!("summary: {e}")))?;
     let list = PyList::empty(py);
     for row in json.as_array().into_iter().flatten() {
-        // In the column order of summary.csv (serde_json's maps sort their keys).
+        // serde_json's maps sort their keys: the columns are read in summary.csv's order.
         let dict = PyDict::new(py);
         for column in compare::SUMMARY_COLUMNS.split(',') {
             let value = row.get(column).unwrap_or(&serde_json::Value::Null);
