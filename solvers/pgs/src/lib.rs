@@ -10,6 +10,7 @@
 //! the stop rule holds) → **store impulses** (write them back, natural-map residual).
 #![warn(missing_docs)]
 
+mod parallel;
 mod position;
 mod registry;
 mod velocity;

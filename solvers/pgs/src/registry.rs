@@ -4,17 +4,34 @@ use deepcontact_core::registry::Registry;
 
 use crate::{Ordering, PgsSettings, PgsSolver};
 
+/// The most threads `pgs:threads=` accepts.
+pub const MAX_THREADS: u64 = 64;
+
 /// Registers `pgs` (parameters `block=true|false`, `order=coloured|sequential`,
-/// `lanes=true|false`, `start=projected|raw`; defaults: [`PgsSettings::default`]).
+/// `lanes=true|false`, `start=projected|raw`, `threads=1..64`, `parallel_from=POINTS`;
+/// defaults: [`PgsSettings::default`]).
 pub fn register(registry: &mut Registry) {
     registry.register_solver(
         "pgs",
         "sequential-impulse projected Gauss-Seidel (Box2D v2.4); block=true|false, \
-         order=coloured|sequential, lanes=true|false, start=projected|raw",
+         order=coloured|sequential, lanes=true|false, start=projected|raw, threads=N (default 1; \
+         bit-identical for any N), parallel_from=POINTS (islands from this size are swept in \
+         fixed chunks that threads share; default 2048)",
         |p| {
             let d = PgsSettings::default();
             let block_solver = p.bool("block", d.block_solver)?;
             let lanes = p.bool("lanes", d.lanes)?;
+            let threads = p.u64("threads", d.threads as u64)?;
+            if !(1..=MAX_THREADS).contains(&threads) {
+                return Err(p.invalid(
+                    "threads",
+                    &threads.to_string(),
+                    format!("must be 1 to {MAX_THREADS}"),
+                ));
+            }
+            let parallel_min_points =
+                usize::try_from(p.u64("parallel_from", d.parallel_min_points as u64)?)
+                    .unwrap_or(usize::MAX);
             let raw_start = match p.choice("start", &["projected", "raw"])? {
                 None => d.raw_start,
                 Some(v) => v == "raw",
@@ -29,6 +46,8 @@ pub fn register(registry: &mut Registry) {
                 ordering,
                 lanes,
                 raw_start,
+                threads: threads as usize,
+                parallel_min_points,
                 ..d
             })) as Box<dyn deepcontact_core::VelocitySolver>)
         },

@@ -32,6 +32,16 @@ pub struct PgsSettings {
     /// `|λt| ≤ μ λn`, as the original thesis code does (default false: projected onto the
     /// cone). Negative normal impulses are raised to 0 either way.
     pub raw_start: bool,
+    /// Threads that share the sweep of one island in the chunked plan (default 1; 0 counts
+    /// as 1). The result is bit-identical for every thread count.
+    pub threads: usize,
+    /// Islands with at least this many contact points are swept in the chunked plan of
+    /// [`threads`](Self::threads) (default 2048): each colour's batches cut into fixed
+    /// chunks whose impulse-change measures are combined in chunk order, whatever the thread
+    /// count. Needs [`Ordering::Coloured`] and [`lanes`](Self::lanes). The ∞ and contact
+    /// norms, the impulses and the velocities are bit-identical to the unchunked sweep; only
+    /// `Σ Δλ²` (the L2 norm) is summed in another order.
+    pub parallel_min_points: usize,
 }
 
 impl Default for PgsSettings {
@@ -42,6 +52,8 @@ impl Default for PgsSettings {
             ordering: Ordering::Coloured,
             lanes: true,
             raw_start: false,
+            threads: 1,
+            parallel_min_points: 2048,
         }
     }
 }
@@ -64,7 +76,7 @@ pub enum Ordering {
 
 /// One contact point laid out for the solver loop.
 #[derive(Debug, Clone, Copy, Default)]
-struct Row {
+pub(crate) struct Row {
     nx: Real,
     ny: Real,
     rna: Real,
@@ -81,7 +93,7 @@ struct Row {
 
 /// One manifold: its body pair with their inverse masses, its rows, and block-solver data.
 #[derive(Debug, Clone, Copy, Default)]
-struct Manifold {
+pub(crate) struct Manifold {
     a: u32,
     b: u32,
     start: u32,
@@ -111,7 +123,7 @@ pub const LANES: usize = 4;
 /// holds one value per lane. Padding lanes point at a dummy immovable body with zero masses,
 /// so their impulse changes are exactly zero.
 #[derive(Debug, Clone, Copy, Default)]
-struct Batch {
+pub(crate) struct Batch {
     a: [u32; LANES],
     b: [u32; LANES],
     /// Row of each lane in `rows` (`u32::MAX` for padding).
@@ -136,17 +148,17 @@ struct Batch {
 
 /// One colour of the sweep: its batches, then its other manifolds one at a time.
 #[derive(Debug, Clone, Default)]
-struct Segment {
-    batches: std::ops::Range<usize>,
-    manifolds: std::ops::Range<usize>,
+pub(crate) struct Segment {
+    pub(crate) batches: std::ops::Range<usize>,
+    pub(crate) manifolds: std::ops::Range<usize>,
 }
 
 /// Velocity `(vx, vy, ω)` of one body.
 #[derive(Debug, Clone, Copy, Default)]
-struct Vel {
-    vx: Real,
-    vy: Real,
-    w: Real,
+pub(crate) struct Vel {
+    pub(crate) vx: Real,
+    pub(crate) vy: Real,
+    pub(crate) w: Real,
 }
 
 /// Projected Gauss-Seidel on sequential impulses (Box2D v2.4's `b2ContactSolver`).
@@ -413,7 +425,7 @@ impl PgsSolver {
             for r in &self.rows[m.start as usize..(m.start + m.count) as usize] {
                 apply(m, r, &mut va, &mut vb, r.ln, r.lt);
             }
-            store(&mut self.vel, m, va, vb);
+            store(self.vel.as_mut_slice(), m, va, vb);
         }
     }
 
@@ -423,25 +435,45 @@ impl PgsSolver {
         let mut acc = Sweep::default();
         if self.segments.is_empty() {
             for m in &self.manifolds {
-                sweep_manifold::<CONTACT>(m, &mut self.rows, &mut self.vel, &mut acc);
+                sweep_manifold::<CONTACT, _>(m, &mut self.rows, self.vel.as_mut_slice(), &mut acc);
             }
             return acc;
         }
         let mut lanes = LaneSweep::default();
         for seg in &self.segments {
             for batch in &mut self.batches[seg.batches.clone()] {
-                sweep_batch::<CONTACT>(batch, &mut self.vel, &mut lanes);
+                sweep_batch::<CONTACT, _>(batch, self.vel.as_mut_slice(), &mut lanes);
             }
             for m in &self.scratch[seg.manifolds.clone()] {
-                sweep_manifold::<CONTACT>(m, &mut self.rows, &mut self.vel, &mut acc);
+                sweep_manifold::<CONTACT, _>(m, &mut self.rows, self.vel.as_mut_slice(), &mut acc);
             }
         }
-        for lane in 0..LANES {
-            acc.max = acc.max.max(lanes.max[lane]);
-            acc.sum_sq += lanes.sum_sq[lane];
-            acc.contact_sq = acc.contact_sq.max(lanes.contact_sq[lane]);
-        }
+        acc.add_lanes(&lanes);
         acc
+    }
+
+    /// Whether this problem is swept in the chunked plan of [`crate::parallel`].
+    fn chunked(&self) -> bool {
+        !self.segments.is_empty() && self.rows.len() >= self.settings.parallel_min_points
+    }
+
+    /// Stage 3's loop on this thread: sweep until the stop rule holds, the cap is reached or
+    /// a change is not finite. Returns the iterations run and the last verdict.
+    fn solve_loop(&mut self, settings: &SolverSettings, report: &mut SolveReport) -> (u32, Verdict) {
+        let mut it = 0;
+        while it < settings.max_iterations {
+            let sweep = if settings.norm == ResidualNorm::Contact {
+                self.iterate::<true>()
+            } else {
+                self.iterate::<false>()
+            };
+            it += 1;
+            match judge(settings, it, &sweep, Some(report)) {
+                Verdict::Continue => {}
+                end => return (it, end),
+            }
+        }
+        (it, Verdict::Continue)
     }
 
     /// Friction rows were clamped against the normal impulse of the previous sweep; a
@@ -459,7 +491,7 @@ impl PgsSolver {
                     apply_tangent(m, r, &mut va, &mut vb, d);
                 }
             }
-            store(&mut self.vel, m, va, vb);
+            store(self.vel.as_mut_slice(), m, va, vb);
         }
     }
 
@@ -510,19 +542,74 @@ fn non_negative(x: Real) -> Real {
 
 /// The measures of one sweep's impulse changes.
 #[derive(Debug, Clone, Copy, Default)]
-struct Sweep {
+pub(crate) struct Sweep {
     /// `max |Δλ|` over the rows.
-    max: Real,
+    pub(crate) max: Real,
     /// `Σ Δλ²` over the rows.
-    sum_sq: Real,
+    pub(crate) sum_sq: Real,
     /// The largest per-manifold `Δλn² + max(0, Δλt)²` (`Δλn` of one-point manifolds only),
     /// the square of [`ResidualNorm::Contact`](deepcontact_core::ResidualNorm::Contact).
-    contact_sq: Real,
+    pub(crate) contact_sq: Real,
+}
+
+impl Sweep {
+    /// Folds the lanes' measures in, lane by lane.
+    #[inline]
+    pub(crate) fn add_lanes(&mut self, lanes: &LaneSweep) {
+        for lane in 0..LANES {
+            self.max = self.max.max(lanes.max[lane]);
+            self.sum_sq += lanes.sum_sq[lane];
+            self.contact_sq = self.contact_sq.max(lanes.contact_sq[lane]);
+        }
+    }
+
+    /// Folds in the measures of rows swept after this sweep's.
+    #[inline]
+    pub(crate) fn add(&mut self, other: &Sweep) {
+        self.max = self.max.max(other.max);
+        self.sum_sq += other.sum_sq;
+        self.contact_sq = self.contact_sq.max(other.contact_sq);
+    }
+}
+
+/// What the stop rule makes of a sweep.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Verdict {
+    /// Iterate again (if the cap allows).
+    Continue,
+    /// The stop rule holds.
+    Converged,
+    /// An impulse change is not finite.
+    Diverged,
+}
+
+/// Judges iteration `it` (1-based) from its sweep's measures, recording its residuals in
+/// `report` when one is given (threads that share a sweep all judge; one records).
+#[inline]
+pub(crate) fn judge(
+    settings: &SolverSettings,
+    it: u32,
+    sweep: &Sweep,
+    report: Option<&mut SolveReport>,
+) -> Verdict {
+    let (max_d, l2) = (sweep.max, sweep.sum_sq.sqrt());
+    if let Some(report) = report {
+        report.residual_inf.push(max_d);
+        report.residual_l2.push(l2);
+    }
+    // `max` skips NaN, so a NaN change shows only in the sum of squares.
+    if !(max_d.is_finite() && l2.is_finite()) {
+        Verdict::Diverged
+    } else if settings.converged(it, max_d, l2, sweep.contact_sq.sqrt()) {
+        Verdict::Converged
+    } else {
+        Verdict::Continue
+    }
 }
 
 /// [`Sweep`] per lane of [`sweep_batch`], as structure of arrays (one register per measure).
 #[derive(Debug, Clone, Copy, Default)]
-struct LaneSweep {
+pub(crate) struct LaneSweep {
     max: [Real; LANES],
     sum_sq: [Real; LANES],
     contact_sq: [Real; LANES],
@@ -531,16 +618,16 @@ struct LaneSweep {
 /// One manifold's rows: friction first (bounded by the current normal impulse), then the
 /// normal rows (block solver for a 2-point manifold with a well-conditioned `K`).
 #[inline(always)]
-fn sweep_manifold<const CONTACT: bool>(
+pub(crate) fn sweep_manifold<const CONTACT: bool, V: Velocities + ?Sized>(
     m: &Manifold,
     rows: &mut [Row],
-    vel: &mut [Vel],
+    vel: &mut V,
     acc: &mut Sweep,
 ) {
     let rows = &mut rows[m.start as usize..(m.start + m.count) as usize];
     // Accumulated in locals (registers), written back once.
     let (mut mx, mut sq, mut cs) = (acc.max, acc.sum_sq, acc.contact_sq);
-    let (mut va, mut vb) = (vel[m.a as usize], vel[m.b as usize]);
+    let (mut va, mut vb) = (vel.get(m.a), vel.get(m.b));
     // The original's per-contact measure: the largest signed friction change (from 0), and
     // the normal change of a one-point manifold.
     let (mut t_pos, mut n_one): (Real, Real) = (0.0, 0.0);
@@ -588,12 +675,16 @@ fn sweep_manifold<const CONTACT: bool>(
 /// bodies back. The lanes' bodies are distinct (one colour), except immovable ones, which
 /// are read but never written.
 #[inline(always)]
-fn sweep_batch<const CONTACT: bool>(b: &mut Batch, vel: &mut [Vel], lanes: &mut LaneSweep) {
+pub(crate) fn sweep_batch<const CONTACT: bool, V: Velocities + ?Sized>(
+    b: &mut Batch,
+    vel: &mut V,
+    lanes: &mut LaneSweep,
+) {
     let mut t_pos = [0.0; LANES];
     let (mut avx, mut avy, mut aw) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
     let (mut bvx, mut bvy, mut bw) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
     for i in 0..LANES {
-        let (va, vb) = (vel[b.a[i] as usize], vel[b.b[i] as usize]);
+        let (va, vb) = (vel.get(b.a[i]), vel.get(b.b[i]));
         (avx[i], avy[i], aw[i]) = (va.vx, va.vy, va.w);
         (bvx[i], bvy[i], bw[i]) = (vb.vx, vb.vy, vb.w);
     }
@@ -639,18 +730,24 @@ fn sweep_batch<const CONTACT: bool>(b: &mut Batch, vel: &mut [Vel], lanes: &mut 
     }
     for i in 0..LANES {
         if movable(b.ma[i], b.ia[i]) {
-            vel[b.a[i] as usize] = Vel {
-                vx: avx[i],
-                vy: avy[i],
-                w: aw[i],
-            };
+            vel.set(
+                b.a[i],
+                Vel {
+                    vx: avx[i],
+                    vy: avy[i],
+                    w: aw[i],
+                },
+            );
         }
         if movable(b.mb[i], b.ib[i]) {
-            vel[b.b[i] as usize] = Vel {
-                vx: bvx[i],
-                vy: bvy[i],
-                w: bw[i],
-            };
+            vel.set(
+                b.b[i],
+                Vel {
+                    vx: bvx[i],
+                    vy: bvy[i],
+                    w: bw[i],
+                },
+            );
         }
     }
 }
@@ -664,12 +761,33 @@ fn movable(inv_mass: Real, inv_inertia: Real) -> bool {
 /// Writes the manifold's body velocities back; immovable bodies are never written, so
 /// manifolds sharing only a wall stay independent.
 #[inline(always)]
-fn store(vel: &mut [Vel], m: &Manifold, va: Vel, vb: Vel) {
+fn store<V: Velocities + ?Sized>(vel: &mut V, m: &Manifold, va: Vel, vb: Vel) {
     if movable(m.ma, m.ia) {
-        vel[m.a as usize] = va;
+        vel.set(m.a, va);
     }
     if movable(m.mb, m.ib) {
-        vel[m.b as usize] = vb;
+        vel.set(m.b, vb);
+    }
+}
+
+/// Body velocities as a sweep reads and writes them: a plain slice on one thread, shared
+/// atomic cells when threads split a colour ([`crate::parallel`]).
+pub(crate) trait Velocities {
+    /// Velocity of body `i`.
+    fn get(&self, i: u32) -> Vel;
+    /// Sets the velocity of body `i`.
+    fn set(&mut self, i: u32, v: Vel);
+}
+
+impl Velocities for [Vel] {
+    #[inline(always)]
+    fn get(&self, i: u32) -> Vel {
+        self[i as usize]
+    }
+
+    #[inline(always)]
+    fn set(&mut self, i: u32, v: Vel) {
+        self[i as usize] = v;
     }
 }
 
@@ -800,29 +918,28 @@ impl VelocitySolver for PgsSolver {
         report
             .residual_l2
             .reserve(settings.max_iterations.min(4096) as usize);
-        let mut it = 0;
-        while it < settings.max_iterations {
-            let sweep = if settings.norm == ResidualNorm::Contact {
-                self.iterate::<true>()
-            } else {
-                self.iterate::<false>()
-            };
-            let (max_d, l2) = (sweep.max, sweep.sum_sq.sqrt());
-            it += 1;
-            report.residual_inf.push(max_d);
-            report.residual_l2.push(l2);
-            // `max` skips NaN, so a NaN change shows only in the sum of squares.
-            if !(max_d.is_finite() && l2.is_finite()) {
-                self.sync_rows();
-                return Err(self.diverged(it).into());
-            }
-            if settings.converged(it, max_d, l2, sweep.contact_sq.sqrt()) {
-                report.converged = true;
-                break;
-            }
-        }
-        report.iterations = it;
+        let (it, verdict) = if self.chunked() {
+            crate::parallel::solve_chunked(
+                &mut crate::parallel::Sweepable {
+                    batches: &mut self.batches,
+                    segments: &self.segments,
+                    serial: &self.scratch,
+                    rows: &mut self.rows,
+                    vel: &mut self.vel,
+                },
+                self.settings.threads.max(1),
+                settings,
+                report,
+            )
+        } else {
+            self.solve_loop(settings, report)
+        };
         self.sync_rows();
+        if verdict == Verdict::Diverged {
+            return Err(self.diverged(it).into());
+        }
+        report.converged = verdict == Verdict::Converged;
+        report.iterations = it;
         self.project_friction();
         let finite = |v: &Vel| v.vx.is_finite() && v.vy.is_finite() && v.w.is_finite();
         if !(self
@@ -934,18 +1051,29 @@ mod tests {
         settings: PgsSettings,
         iterations: u32,
     ) -> (Vec<u64>, Vec<u64>, u32) {
-        let mut solver = PgsSolver::with_settings(settings);
-        let mut imp = start.to_vec();
-        let mut vel = vec![Velocity::default(); problem.bodies.len()];
-        let mut report = SolveReport::default();
         let stop = SolverSettings {
             max_iterations: iterations,
             ..SolverSettings::default()
         };
+        solve_bits_with(problem, start, settings, &stop).0
+    }
+
+    /// [`solve_bits`] under the stop rule `stop`; also returns the L2 residuals as bits.
+    fn solve_bits_with(
+        problem: &ContactProblem,
+        start: &[Impulse],
+        settings: PgsSettings,
+        stop: &SolverSettings,
+    ) -> ((Vec<u64>, Vec<u64>, u32), Vec<u64>) {
+        let mut solver = PgsSolver::with_settings(settings);
+        let mut imp = start.to_vec();
+        let mut vel = vec![Velocity::default(); problem.bodies.len()];
+        let mut report = SolveReport::default();
         solver
-            .solve(problem, &stop, &mut imp, &mut vel, &mut report)
+            .solve(problem, stop, &mut imp, &mut vel, &mut report)
             .unwrap();
-        (
+        let l2 = report.residual_l2.iter().map(|r| r.to_bits()).collect();
+        let bits = (
             imp.iter()
                 .flat_map(|i| [i.normal.to_bits(), i.tangent.to_bits()])
                 .collect(),
@@ -959,13 +1087,13 @@ mod tests {
                 })
                 .collect(),
             report.iterations,
-        )
+        );
+        (bits, l2)
     }
 
-    #[test]
-    fn lanes_are_bit_identical_to_one_manifold_at_a_time() {
-        // Circles (single-point manifolds, batched) and a pyramid of boxes (2-point
-        // manifolds with the block solver, one at a time), from zero and carried starts.
+    /// The pile's largest island and the pyramid's (2-point manifolds, swept one at a time
+    /// by thread 0 of the chunked plan).
+    fn pile_and_pyramid() -> Vec<ContactProblem> {
         let mut problems = vec![pile_problem()];
         let mut world = scene::pyramid(6).build(WorldSettings::default()).unwrap();
         let (mut s, mut p) = (PgsSolver::new(), crate::PgsPositionSolver::new());
@@ -973,6 +1101,48 @@ mod tests {
             world.step(&mut CarriedWarmStart, &mut s, &mut p).unwrap();
         }
         problems.extend(world.last_problems().iter().cloned());
+        problems
+    }
+
+    #[test]
+    fn chunked_sweep_is_bit_identical_for_one_two_and_four_threads() {
+        for problem in pile_and_pyramid() {
+            let start: Vec<Impulse> = (0..problem.len())
+                .map(|i| Impulse::new(0.01 * i as Real, 0.001 * i as Real))
+                .collect();
+            for norm in [ResidualNorm::Infinity, ResidualNorm::Contact, ResidualNorm::L2] {
+                let stop = SolverSettings {
+                    norm,
+                    tolerance: 1e-6,
+                    ..SolverSettings::default()
+                };
+                let unchunked = solve_bits_with(&problem, &start, PgsSettings::default(), &stop);
+                let runs: Vec<_> = [1, 2, 4]
+                    .map(|threads| {
+                        let settings = PgsSettings {
+                            threads,
+                            parallel_min_points: 0,
+                            ..PgsSettings::default()
+                        };
+                        solve_bits_with(&problem, &start, settings, &stop)
+                    })
+                    .into();
+                assert!(runs[0].0.2 > 1, "ran {} iterations", runs[0].0.2);
+                assert_eq!(runs[0], runs[1], "{norm:?}: 1 and 2 threads");
+                assert_eq!(runs[0], runs[2], "{norm:?}: 1 and 4 threads");
+                if norm != ResidualNorm::L2 {
+                    // Only Σ Δλ² is summed in chunk order.
+                    assert_eq!(runs[0].0, unchunked.0, "{norm:?}: chunked and unchunked");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn lanes_are_bit_identical_to_one_manifold_at_a_time() {
+        // Circles (single-point manifolds, batched) and a pyramid of boxes (2-point
+        // manifolds with the block solver, one at a time), from zero and carried starts.
+        let problems = pile_and_pyramid();
         let mut batched = 0;
         for problem in &problems {
             let carried: Vec<Impulse> = (0..problem.len())
