@@ -11,8 +11,10 @@ Build the original as ../shared/thesis_original/README.md says, then, from the p
     $PY docs/thesis_original/probe.py --repo $ORIG --out DIR order
 
 Options before the subcommand: --round-start (start a float64 build of the engine from the
-float32 worlds), --no-skin (the box's chain loop moved out by its 1 mm skin) and --edges (the
-box as four separate edges, surface at the walls).
+float32 worlds), --no-skin (the box's chain loop moved out by its 1 mm skin), --edges (the
+box as four separate edges, surface at the walls) and --mirror (every world's mirror image,
+x -> 15 - x; the nudge of `chaos` is applied after mirroring, and the scene files it writes are
+the mirrored worlds).
 
 Subcommands:
 
@@ -80,6 +82,12 @@ def new_world(o, seed):
             if b.userData.id != 0:
                 b.position = o["b2Vec2"](float(np.float32(b.position.x)),
                                          float(np.float32(b.position.y)))
+    if o.get("mirror"):
+        # the world's mirror image x -> 15 - x (the box is symmetric): every rule of both
+        # engines is mirror-symmetric except the stop rule's max(0, friction change)
+        for b in w.bodies:
+            if b.userData.id != 0:
+                b.position = o["b2Vec2"](HIGH[0] + LOW[0] - b.position.x, b.position.y)
     return w
 
 
@@ -492,6 +500,8 @@ def main():
     ap.add_argument("--edges", action="store_true",
                     help="the box as four separate edge fixtures (no chain loop, no ghost "
                          "vertices), their surface at 0 and 15 m as in our engine")
+    ap.add_argument("--mirror", action="store_true",
+                    help="every world's mirror image x -> 15 - x (before any nudge)")
     sub = ap.add_subparsers(dest="cmd", required=True)
     t = sub.add_parser("timing")
     t.add_argument("--methods", default="none,builtin,random,bad,copy,copy2,copy0")
@@ -507,6 +517,7 @@ def main():
     args = ap.parse_args()
     o = load(args.repo)
     o["round_start"] = args.round_start
+    o["mirror"] = args.mirror
     if args.no_skin:
         import src.gen_world as gen_world
         box = gen_world.create_fixed_box
