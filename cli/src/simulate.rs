@@ -34,6 +34,10 @@ pub struct SimulateArgs {
     /// Draw the final state (bodies, walls, contact normals) to this PNG.
     #[arg(long)]
     pub render: Option<std::path::PathBuf>,
+    /// Threads that share the velocity and position solve of one large island (pgs only;
+    /// islands from 2048 contact points; results bit-identical for any count).
+    #[arg(long, default_value_t = 1)]
+    pub threads: usize,
     /// Print a table row every this many steps.
     #[arg(long, default_value_t = 25)]
     pub every: u64,
@@ -57,6 +61,7 @@ impl SimulateArgs {
             warm_start: preset.warm_start(&warm).to_string(),
             solver: self.solver.solver_spec()?,
             world: self.solver.preset_world_settings()?,
+            threads: self.threads,
         })
     }
 }

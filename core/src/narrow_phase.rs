@@ -19,7 +19,7 @@ pub struct RawContact {
 }
 
 /// Reusable narrow-phase state.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Clone)]
 pub struct NarrowPhase {
     manifolds: Vec<ContactManifold<(), ()>>,
     /// Points of all manifolds, grouped by manifold.

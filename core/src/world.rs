@@ -142,7 +142,7 @@ impl Persistent {
 
 /// Per-step scratch buffers, taken out of the world during a step so that providers can
 /// borrow the world immutably.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Clone)]
 struct Scratch {
     problems: Vec<ContactProblem>,
     /// Per island: index of each point in the narrow phase's contact list.
@@ -163,7 +163,11 @@ struct Scratch {
 }
 
 /// A 2D rigid-body world stepped Box2D-style with pluggable warm start and solvers.
-#[derive(Debug, Default)]
+///
+/// `Clone` copies everything a step depends on (bodies, settings, step index, the previous
+/// step's contacts and impulses), so a clone steps bit-identically to the original: a
+/// snapshot to branch experiments from.
+#[derive(Debug, Default, Clone)]
 pub struct World {
     bodies: Vec<Body>,
     settings: WorldSettings,

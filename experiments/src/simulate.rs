@@ -2,7 +2,7 @@
 
 use std::time::Instant;
 
-use deepcontact_core::{Registry, StepReport, World, WorldSettings, scene};
+use deepcontact_core::{Registry, Spec, StepReport, World, WorldSettings, scene};
 use deepcontact_pgs::PgsPositionSolver;
 
 use crate::ExperimentError;
@@ -24,6 +24,10 @@ pub struct SimulateConfig {
     pub solver: String,
     /// World settings (default: the thesis's).
     pub world: WorldSettings,
+    /// Threads that share the velocity and position solve of one large island (default 1;
+    /// `pgs` only: added to the solver spec as `threads=`). Results are bit-identical for any
+    /// count.
+    pub threads: usize,
 }
 
 impl Default for SimulateConfig {
@@ -36,6 +40,7 @@ impl Default for SimulateConfig {
             warm_start: "builtin".into(),
             solver: "pgs".into(),
             world: WorldSettings::default(),
+            threads: 1,
         }
     }
 }
@@ -73,6 +78,37 @@ pub struct Totals {
     pub capped_steps: u64,
 }
 
+/// The solver spec `spec` with `threads` threads: `pgs` gains `threads=N` (a `threads` it
+/// already has must agree); other solvers run on one thread and refuse more.
+pub fn threaded_spec(spec: &str, threads: usize) -> Result<Spec, ExperimentError> {
+    let mut spec: Spec = spec.parse()?;
+    if threads == 0 || threads > deepcontact_pgs::MAX_THREADS as usize {
+        return Err(ExperimentError::Invalid(format!(
+            "--threads {threads}: must be 1 to {}",
+            deepcontact_pgs::MAX_THREADS
+        )));
+    }
+    if threads == 1 {
+        return Ok(spec);
+    }
+    if spec.name != "pgs" {
+        return Err(ExperimentError::Invalid(format!(
+            "--threads {threads}: only the pgs solver runs on several threads, not {}",
+            spec.name
+        )));
+    }
+    let n = threads.to_string();
+    match spec.params.get("threads") {
+        Some(given) if *given != n => Err(ExperimentError::Invalid(format!(
+            "--threads {threads} disagrees with the solver's threads={given}"
+        ))),
+        _ => {
+            spec.params.insert("threads".into(), n);
+            Ok(spec)
+        }
+    }
+}
+
 /// Runs a scene, calling `each` for every step report; returns the world and the totals.
 pub fn run_scene(
     config: &SimulateConfig,
@@ -80,8 +116,8 @@ pub fn run_scene(
     mut each: impl FnMut(&StepReport),
 ) -> Result<(World, Totals), ExperimentError> {
     let mut warm = registry.build_provider(&config.warm_start)?;
-    let mut solver = registry.build_solver(&config.solver)?;
-    let mut position = PgsPositionSolver::new();
+    let mut solver = registry.solver_from_spec(&threaded_spec(&config.solver, config.threads)?)?;
+    let mut position = PgsPositionSolver::with_threads(config.threads);
     let scene = scene::by_name(&config.scene, config.seed, config.bodies)?;
     let mut world = scene.build(config.world)?;
     let late_from = config.late_from();

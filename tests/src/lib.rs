@@ -10,13 +10,23 @@ pub fn run(
     world: &mut World,
     warm: &mut dyn WarmStart,
     steps: u64,
+    check: impl FnMut(&World, &StepReport),
+) -> Result<Vec<StepReport>, CoreError> {
+    let mut solvers = (PgsSolver::new(), PgsPositionSolver::new());
+    run_with(world, warm, &mut solvers, steps, check)
+}
+
+/// [`run`] with the given velocity and position solvers.
+pub fn run_with(
+    world: &mut World,
+    warm: &mut dyn WarmStart,
+    (solver, position): &mut (PgsSolver, PgsPositionSolver),
+    steps: u64,
     mut check: impl FnMut(&World, &StepReport),
 ) -> Result<Vec<StepReport>, CoreError> {
-    let mut solver = PgsSolver::new();
-    let mut position = PgsPositionSolver::new();
     let mut reports = Vec::with_capacity(steps as usize);
     for _ in 0..steps {
-        let r = world.step(warm, &mut solver, &mut position)?;
+        let r = world.step(warm, solver, position)?;
         check(world, &r);
         reports.push(r);
     }

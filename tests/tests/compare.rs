@@ -58,6 +58,26 @@ fn scratch_dir(name: &str) -> PathBuf {
 }
 
 #[test]
+fn compare_outputs_are_the_same_for_one_two_and_four_solver_threads() {
+    // Every island through the chunked sweep (`parallel_from=0`) on 1, 2 and 4 threads: the
+    // same step records and curves, and the same as the plain sweep (∞-norm stop rule).
+    let config = |solver: &str| Config {
+        warm_starts: split_spec_list("none,builtin,krylov").unwrap(),
+        solvers: split_spec_list(solver).unwrap(),
+        ..small(2)
+    };
+    let plain = compare::run_experiment(&config("pgs")).unwrap();
+    for threads in [1, 2, 4] {
+        let spec = format!("pgs:parallel_from=0,threads={threads}");
+        let mut chunked = compare::run_experiment(&config(&spec)).unwrap();
+        assert_eq!(chunked.solvers, [spec]);
+        // The solver's name is the only difference.
+        chunked.solvers.clone_from(&plain.solvers);
+        assert_same_numbers(&plain, &chunked);
+    }
+}
+
+#[test]
 fn compare_writes_every_file_and_ignores_the_thread_count() {
     let one = compare::run_experiment(&small(1)).unwrap();
     let two = compare::run_experiment(&small(2)).unwrap();

@@ -5,7 +5,8 @@
 //! `tests/tests/compare.rs`, so it is not repeated here.
 
 use deepcontact_core::scene;
-use deepcontact_tests::{build, run};
+use deepcontact_pgs::{PgsPositionSettings, PgsPositionSolver, PgsSettings, PgsSolver};
+use deepcontact_tests::{build, run_with};
 
 /// FNV-1a 64 over the little-endian bytes of `words` (stable by definition, unlike
 /// `std::collections::hash_map::DefaultHasher`, whose algorithm may change between releases).
@@ -39,11 +40,17 @@ fn fnv1a64(words: impl IntoIterator<Item = u64>) -> u64 {
 const PILE_12345_250_BUILTIN_PGS: u64 = 0xe32d_4759_00b5_0c98;
 
 fn pile_hash() -> (u64, usize) {
+    pile_hash_with(PgsSolver::new(), PgsPositionSolver::new())
+}
+
+/// [`pile_hash`] with the given solvers.
+fn pile_hash_with(solver: PgsSolver, position: PgsPositionSolver) -> (u64, usize) {
     let mut world = build(&scene::pile(12345, 100).unwrap());
     let mut warm = deepcontact_experiments::full_registry()
         .build_provider("builtin")
         .unwrap();
-    let reports = run(&mut world, warm.as_mut(), 250, |_, _| {}).unwrap();
+    let mut solvers = (solver, position);
+    let reports = run_with(&mut world, warm.as_mut(), &mut solvers, 250, |_, _| {}).unwrap();
     assert_eq!(reports.len(), 250);
     assert!(reports.iter().all(|r| r.fallbacks == 0));
     let words = world
@@ -76,5 +83,55 @@ fn pile_golden_hash() {
         hash, PILE_12345_250_BUILTIN_PGS,
         "the pile's golden hash changed: {hash:#018x} (see the doc comment of \
          PILE_12345_250_BUILTIN_PGS for when this is legitimate and how to update it)"
+    );
+}
+
+/// The chunked sweeps on every island (`parallel_from` 0) with 1, 2 and 4 threads.
+fn chunked(threads: usize, position: bool) -> (PgsSolver, PgsPositionSolver) {
+    let solver = PgsSolver::with_settings(PgsSettings {
+        threads,
+        parallel_min_points: 0,
+        ..PgsSettings::default()
+    });
+    let position = if position {
+        PgsPositionSolver::with_settings(PgsPositionSettings {
+            threads,
+            parallel_min_points: 0,
+        })
+    } else {
+        PgsPositionSolver::new()
+    };
+    (solver, position)
+}
+
+#[test]
+fn pile_golden_hash_is_the_same_on_one_two_and_four_threads() {
+    // The chunked velocity sweep gives the golden bits on any thread count (the ∞-norm stop
+    // rule sees the same maxima).
+    for threads in [1, 2, 4] {
+        let (solver, position) = chunked(threads, false);
+        let (hash, _) = pile_hash_with(solver, position);
+        assert_eq!(
+            hash, PILE_12345_250_BUILTIN_PGS,
+            "chunked velocity sweep on {threads} threads: {hash:#018x}"
+        );
+    }
+    // The coloured position pass visits the points in another order (another, equally valid
+    // result), the same for every thread count.
+    let hashes = [1, 2, 4].map(|threads| {
+        let (solver, position) = chunked(threads, true);
+        pile_hash_with(solver, position).0
+    });
+    assert_eq!(
+        hashes[0], hashes[1],
+        "coloured position pass, 1 and 2 threads"
+    );
+    assert_eq!(
+        hashes[0], hashes[2],
+        "coloured position pass, 1 and 4 threads"
+    );
+    assert_ne!(
+        hashes[0], PILE_12345_250_BUILTIN_PGS,
+        "the coloured order did not run"
     );
 }

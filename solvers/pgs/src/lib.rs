@@ -10,13 +10,15 @@
 //! the stop rule holds) → **store impulses** (write them back, natural-map residual).
 #![warn(missing_docs)]
 
-mod parallel;
 mod position;
+mod position_chunked;
 mod registry;
+mod sync;
 mod velocity;
+mod velocity_chunked;
 
-pub use position::PgsPositionSolver;
-pub use registry::register;
+pub use position::{PgsPositionSettings, PgsPositionSolver};
+pub use registry::{MAX_THREADS, register};
 pub use velocity::{LANES, Ordering, PgsSettings, PgsSolver};
 
 /// Errors of this crate (wrapped into [`deepcontact_core::CoreError`] at the trait boundary).

@@ -33,7 +33,8 @@ pub struct PgsSettings {
     /// cone). Negative normal impulses are raised to 0 either way.
     pub raw_start: bool,
     /// Threads that share the sweep of one island in the chunked plan (default 1; 0 counts
-    /// as 1). The result is bit-identical for every thread count.
+    /// as 1; no more than the cores the process may use are started). The result is
+    /// bit-identical for every thread count.
     pub threads: usize,
     /// Islands with at least this many contact points are swept in the chunked plan of
     /// [`threads`](Self::threads) (default 2048): each colour's batches cut into fixed
@@ -452,14 +453,18 @@ impl PgsSolver {
         acc
     }
 
-    /// Whether this problem is swept in the chunked plan of [`crate::parallel`].
+    /// Whether this problem is swept in the chunked plan of [`crate::velocity_chunked`].
     fn chunked(&self) -> bool {
         !self.segments.is_empty() && self.rows.len() >= self.settings.parallel_min_points
     }
 
     /// Stage 3's loop on this thread: sweep until the stop rule holds, the cap is reached or
     /// a change is not finite. Returns the iterations run and the last verdict.
-    fn solve_loop(&mut self, settings: &SolverSettings, report: &mut SolveReport) -> (u32, Verdict) {
+    fn solve_loop(
+        &mut self,
+        settings: &SolverSettings,
+        report: &mut SolveReport,
+    ) -> (u32, Verdict) {
         let mut it = 0;
         while it < settings.max_iterations {
             let sweep = if settings.norm == ResidualNorm::Contact {
@@ -771,7 +776,7 @@ fn store<V: Velocities + ?Sized>(vel: &mut V, m: &Manifold, va: Vel, vb: Vel) {
 }
 
 /// Body velocities as a sweep reads and writes them: a plain slice on one thread, shared
-/// atomic cells when threads split a colour ([`crate::parallel`]).
+/// atomic cells when threads split a colour ([`crate::velocity_chunked`]).
 pub(crate) trait Velocities {
     /// Velocity of body `i`.
     fn get(&self, i: u32) -> Vel;
@@ -919,15 +924,16 @@ impl VelocitySolver for PgsSolver {
             .residual_l2
             .reserve(settings.max_iterations.min(4096) as usize);
         let (it, verdict) = if self.chunked() {
-            crate::parallel::solve_chunked(
-                &mut crate::parallel::Sweepable {
+            crate::velocity_chunked::solve_chunked(
+                &mut crate::velocity_chunked::Sweepable {
                     batches: &mut self.batches,
                     segments: &self.segments,
                     serial: &self.scratch,
                     rows: &mut self.rows,
                     vel: &mut self.vel,
                 },
-                self.settings.threads.max(1),
+                crate::velocity_chunked::CHUNK,
+                crate::sync::effective_threads(self.settings.threads),
                 settings,
                 report,
             )
@@ -1105,12 +1111,65 @@ mod tests {
     }
 
     #[test]
+    fn chunked_plan_gives_the_same_bits_on_one_to_five_real_threads() {
+        // Straight to the chunked loop, past the clamp to the machine's cores, one batch a
+        // chunk (so that a 100-body island has chunks for five threads).
+        let problem = pile_problem();
+        let stop = SolverSettings {
+            tolerance: 1e-5,
+            ..SolverSettings::default()
+        };
+        let runs: Vec<_> = (1..=5)
+            .map(|threads| {
+                let mut solver = PgsSolver::new();
+                solver.prepare(&problem, &vec![Impulse::ZERO; problem.len()]);
+                solver.warm_start();
+                let mut report = SolveReport::default();
+                let (it, verdict) = crate::velocity_chunked::solve_chunked(
+                    &mut crate::velocity_chunked::Sweepable {
+                        batches: &mut solver.batches,
+                        segments: &solver.segments,
+                        serial: &solver.scratch,
+                        rows: &mut solver.rows,
+                        vel: &mut solver.vel,
+                    },
+                    1,
+                    threads,
+                    &stop,
+                    &mut report,
+                );
+                solver.sync_rows();
+                let rows: Vec<u64> = solver
+                    .rows
+                    .iter()
+                    .flat_map(|r| [r.ln.to_bits(), r.lt.to_bits()])
+                    .collect();
+                let vel: Vec<u64> = solver
+                    .vel
+                    .iter()
+                    .flat_map(|v| [v.vx.to_bits(), v.vy.to_bits(), v.w.to_bits()])
+                    .collect();
+                (it, verdict, rows, vel, report.residual_l2)
+            })
+            .collect();
+        assert_eq!(runs[0].1, Verdict::Converged);
+        assert!(runs[0].0 > 10);
+        for r in &runs[1..] {
+            assert!(r == &runs[0]);
+        }
+    }
+
+    #[test]
     fn chunked_sweep_is_bit_identical_for_one_two_and_four_threads() {
         for problem in pile_and_pyramid() {
             let start: Vec<Impulse> = (0..problem.len())
                 .map(|i| Impulse::new(0.01 * i as Real, 0.001 * i as Real))
                 .collect();
-            for norm in [ResidualNorm::Infinity, ResidualNorm::Contact, ResidualNorm::L2] {
+            for norm in [
+                ResidualNorm::Infinity,
+                ResidualNorm::Contact,
+                ResidualNorm::L2,
+            ] {
                 let stop = SolverSettings {
                     norm,
                     tolerance: 1e-6,

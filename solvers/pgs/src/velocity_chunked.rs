@@ -9,10 +9,9 @@
 //! threads reach the same stop decision and the result is the same bits for any `T`
 //! (`T = 1` runs the same plan on the calling thread).
 
-use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering as Mem};
-
 use deepcontact_core::{ResidualNorm, SolveReport, SolverSettings};
 
+use crate::sync::{Cell3, SpinBarrier, owner};
 use crate::velocity::{
     Batch, LaneSweep, Manifold, Row, Segment, Sweep, Vel, Velocities, Verdict, judge, sweep_batch,
     sweep_manifold,
@@ -20,10 +19,6 @@ use crate::velocity::{
 
 /// Batches per chunk: the unit a thread takes, and the unit of the measures' summation order.
 pub(crate) const CHUNK: usize = 16;
-
-/// Spins before a waiting thread starts yielding its core (a core shared with other work
-/// must not be burnt).
-const SPINS: u32 = 1 << 12;
 
 /// The solver's buffers that the chunked sweep works on.
 pub(crate) struct Sweepable<'a> {
@@ -39,113 +34,34 @@ pub(crate) struct Sweepable<'a> {
     pub(crate) vel: &'a mut [Vel],
 }
 
-/// A body velocity that threads share: the `f64` bits in relaxed atomics (plain loads and
-/// stores on x86-64 and AArch64); the barrier between colours orders them.
-#[derive(Debug, Default)]
-struct SharedVel {
-    vx: AtomicU64,
-    vy: AtomicU64,
-    w: AtomicU64,
-}
-
-impl SharedVel {
-    fn new(v: &Vel) -> Self {
-        Self {
-            vx: AtomicU64::new(v.vx.to_bits()),
-            vy: AtomicU64::new(v.vy.to_bits()),
-            w: AtomicU64::new(v.w.to_bits()),
-        }
-    }
-
-    #[inline(always)]
-    fn load(&self) -> Vel {
-        Vel {
-            vx: f64::from_bits(self.vx.load(Mem::Relaxed)),
-            vy: f64::from_bits(self.vy.load(Mem::Relaxed)),
-            w: f64::from_bits(self.w.load(Mem::Relaxed)),
-        }
-    }
-
-    #[inline(always)]
-    fn store(&self, v: Vel) {
-        self.vx.store(v.vx.to_bits(), Mem::Relaxed);
-        self.vy.store(v.vy.to_bits(), Mem::Relaxed);
-        self.w.store(v.w.to_bits(), Mem::Relaxed);
-    }
-}
-
 /// The shared velocities as a sweep sees them.
-struct Shared<'a>(&'a [SharedVel]);
+struct Shared<'a>(&'a [Cell3]);
 
 impl Velocities for Shared<'_> {
     #[inline(always)]
     fn get(&self, i: u32) -> Vel {
-        self.0[i as usize].load()
+        let [vx, vy, w] = self.0[i as usize].load();
+        Vel { vx, vy, w }
     }
 
     #[inline(always)]
     fn set(&mut self, i: u32, v: Vel) {
-        self.0[i as usize].store(v);
+        self.0[i as usize].store([v.vx, v.vy, v.w]);
     }
 }
 
-/// One slot of measures, shared: `max`, `sum_sq`, `contact_sq` as `f64` bits.
-#[derive(Debug, Default)]
-struct Slot([AtomicU64; 3]);
-
-impl Slot {
-    fn publish(&self, s: &Sweep) {
-        self.0[0].store(s.max.to_bits(), Mem::Relaxed);
-        self.0[1].store(s.sum_sq.to_bits(), Mem::Relaxed);
-        self.0[2].store(s.contact_sq.to_bits(), Mem::Relaxed);
-    }
-
-    fn read(&self) -> Sweep {
-        Sweep {
-            max: f64::from_bits(self.0[0].load(Mem::Relaxed)),
-            sum_sq: f64::from_bits(self.0[1].load(Mem::Relaxed)),
-            contact_sq: f64::from_bits(self.0[2].load(Mem::Relaxed)),
-        }
-    }
+/// A slot's measures: `max`, `sum_sq`, `contact_sq`.
+fn publish(slot: &Cell3, s: &Sweep) {
+    slot.store([s.max, s.sum_sq, s.contact_sq]);
 }
 
-/// A reusable barrier for a fixed number of threads: spins, then yields.
-#[derive(Debug)]
-struct SpinBarrier {
-    threads: usize,
-    arrived: AtomicUsize,
-    epoch: AtomicUsize,
-}
-
-impl SpinBarrier {
-    fn new(threads: usize) -> Self {
-        Self {
-            threads,
-            arrived: AtomicUsize::new(0),
-            epoch: AtomicUsize::new(0),
-        }
-    }
-
-    /// Waits for every thread; `epoch` is the caller's count of barriers passed. The last
-    /// thread to arrive resets the count before it publishes the new epoch (release), so a
-    /// thread that sees the epoch (acquire) also sees the reset and every write made before
-    /// the barrier.
-    fn wait(&self, epoch: &mut usize) {
-        *epoch += 1;
-        if self.arrived.fetch_add(1, Mem::AcqRel) + 1 == self.threads {
-            self.arrived.store(0, Mem::Relaxed);
-            self.epoch.store(*epoch, Mem::Release);
-            return;
-        }
-        let mut spins = 0;
-        while self.epoch.load(Mem::Acquire) != *epoch {
-            if spins < SPINS {
-                spins += 1;
-                std::hint::spin_loop();
-            } else {
-                std::thread::yield_now();
-            }
-        }
+/// The measures of a slot.
+fn read(slot: &Cell3) -> Sweep {
+    let [max, sum_sq, contact_sq] = slot.load();
+    Sweep {
+        max,
+        sum_sq,
+        contact_sq,
     }
 }
 
@@ -156,8 +72,8 @@ struct Common<'a> {
     serial_slot: Vec<usize>,
     /// Two sets of slots, used by odd and even iterations: a thread may start the next
     /// iteration while another still folds this one's slots.
-    slots: [Vec<Slot>; 2],
-    vel: Vec<SharedVel>,
+    slots: [Vec<Cell3>; 2],
+    vel: Vec<Cell3>,
     barrier: SpinBarrier,
     settings: &'a SolverSettings,
 }
@@ -169,15 +85,23 @@ struct Part<'a> {
     serial: Option<(&'a mut [Row], &'a [Manifold])>,
 }
 
-/// Runs stage 3's loop in the chunked plan on `threads` threads (≥ 1). Returns the
+/// Runs stage 3's loop in the chunked plan, `chunk` batches a chunk ([`CHUNK`] in the
+/// solver), on `threads` threads (≥ 1; fewer when no colour has that many chunks). Returns the
 /// iterations run and the last verdict, as the one-thread loop does; `report` gets the
 /// residual of every iteration.
 pub(crate) fn solve_chunked(
     s: &mut Sweepable<'_>,
+    chunk: usize,
     threads: usize,
     settings: &SolverSettings,
     report: &mut SolveReport,
 ) -> (u32, Verdict) {
+    // No more threads than the widest colour has chunks: the others would only wait.
+    let widest = s
+        .segments
+        .iter()
+        .map(|seg| seg.batches.len().div_ceil(chunk));
+    let threads = threads.min(widest.max().unwrap_or(1)).max(1);
     let mut parts: Vec<Part<'_>> = (0..threads)
         .map(|_| Part {
             chunks: (0..s.segments.len()).map(|_| Vec::new()).collect(),
@@ -191,10 +115,9 @@ pub(crate) fn solve_chunked(
     for (c, seg) in s.segments.iter().enumerate() {
         let (colour, tail) = std::mem::take(&mut rest).split_at_mut(seg.batches.len());
         rest = tail;
-        let n_chunks = colour.len().div_ceil(CHUNK);
-        for (j, chunk) in colour.chunks_mut(CHUNK).enumerate() {
-            // Contiguous runs: chunk j of n goes to thread ⌊j T / n⌋.
-            parts[j * threads / n_chunks].chunks[c].push((slot, chunk));
+        let n_chunks = colour.len().div_ceil(chunk);
+        for (j, batches) in colour.chunks_mut(chunk).enumerate() {
+            parts[owner(j, n_chunks, threads)].chunks[c].push((slot, batches));
             slot += 1;
         }
         serial_slot.push(slot);
@@ -205,10 +128,14 @@ pub(crate) fn solve_chunked(
         segments: s.segments,
         serial_slot,
         slots: [
-            (0..slot).map(|_| Slot::default()).collect(),
-            (0..slot).map(|_| Slot::default()).collect(),
+            (0..slot).map(|_| Cell3::default()).collect(),
+            (0..slot).map(|_| Cell3::default()).collect(),
         ],
-        vel: s.vel.iter().map(SharedVel::new).collect(),
+        vel: s
+            .vel
+            .iter()
+            .map(|v| Cell3::new([v.vx, v.vy, v.w]))
+            .collect(),
         barrier: SpinBarrier::new(threads),
         settings,
     };
@@ -229,7 +156,8 @@ pub(crate) fn solve_chunked(
         run(first, Some(report))
     });
     for (v, shared) in s.vel.iter_mut().zip(&common.vel) {
-        *v = shared.load();
+        let [vx, vy, w] = shared.load();
+        *v = Vel { vx, vy, w };
     }
     outcome
 }
@@ -254,20 +182,20 @@ fn worker<const CONTACT: bool>(
                 }
                 let mut sweep = Sweep::default();
                 sweep.add_lanes(&lanes);
-                slots[*slot].publish(&sweep);
+                publish(&slots[*slot], &sweep);
             }
             if let Some((rows, serial)) = &mut part.serial {
                 let mut sweep = Sweep::default();
                 for m in &serial[seg.manifolds.clone()] {
                     sweep_manifold::<CONTACT, _>(m, rows, &mut vel, &mut sweep);
                 }
-                slots[common.serial_slot[c]].publish(&sweep);
+                publish(&slots[common.serial_slot[c]], &sweep);
             }
             common.barrier.wait(&mut epoch);
         }
         let mut sweep = Sweep::default();
         for slot in slots {
-            sweep.add(&slot.read());
+            sweep.add(&read(slot));
         }
         it += 1;
         match judge(common.settings, it, &sweep, report.as_deref_mut()) {

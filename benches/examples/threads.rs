@@ -1,0 +1,179 @@
+//! One big island on several threads: the settled pile of `--bodies` circles (default
+//! 10 000) stepped under the thesis stop rule (cap 1 000, ∞-norm < 1e-4, position cap 250)
+//! with 1 thread and with `--threads` threads, from the same snapshot, alternately for
+//! `--rounds` rounds. Prints ms per step (whole step, velocity solve, the rest) per thread
+//! count and the ratio T threads / 1 thread, and checks that every run ends in the same
+//! bits (positions, velocities) whatever the thread count.
+//!
+//! ```sh
+//! cargo run --release -p deepcontact-benches --example threads
+//! cargo run --release -p deepcontact-benches --example threads -- --bodies 1000 --threads 2 --steps 10
+//! ```
+//!
+//! Timings are wall-clock; compare rows of one run only.
+
+use std::time::Instant;
+
+use deepcontact_benches::{SEED, settle_world};
+use deepcontact_core::{CarriedWarmStart, World, WorldSettings, scene};
+use deepcontact_pgs::{PgsPositionSolver, PgsSettings, PgsSolver};
+
+/// Command-line options.
+struct Options {
+    bodies: usize,
+    threads: usize,
+    steps: u64,
+    settle: u64,
+    rounds: usize,
+}
+
+fn parse() -> Result<Option<Options>, String> {
+    let mut o = Options {
+        bodies: 10_000,
+        threads: 2,
+        steps: 5,
+        settle: 0,
+        rounds: 3,
+    };
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        if a == "--help" || a == "-h" {
+            println!(
+                "usage: threads [--bodies 10000] [--threads 2] [--steps 5] [--settle STEPS] \
+                 [--rounds 3]  (--settle default: 250 × (bodies / 100)^¼)"
+            );
+            return Ok(None);
+        }
+        let value = args.next().ok_or(format!("{a} needs a value"))?;
+        let number = |v: &str| v.parse::<u64>().map_err(|e| format!("{a} {v}: {e}"));
+        match a.as_str() {
+            "--bodies" => o.bodies = number(&value)? as usize,
+            "--threads" => o.threads = number(&value)? as usize,
+            "--steps" => o.steps = number(&value)?,
+            "--settle" => o.settle = number(&value)?,
+            "--rounds" => o.rounds = number(&value)? as usize,
+            _ => return Err(format!("unknown option {a} (see --help)")),
+        }
+    }
+    if o.settle == 0 {
+        o.settle = (250.0 * (o.bodies as f64 / 100.0).powf(0.25)).round() as u64;
+    }
+    if !(1..=64).contains(&o.threads) || o.steps == 0 || o.rounds == 0 {
+        return Err("--threads must be 1 to 64, --steps and --rounds at least 1".into());
+    }
+    Ok(Some(o))
+}
+
+/// One measured run: per-step sums and the final state's bits.
+#[derive(Default)]
+struct Run {
+    wall: f64,
+    solve: f64,
+    iterations: u64,
+    position_iterations: u64,
+    contacts: u64,
+    bits: Vec<u64>,
+}
+
+/// `steps` thesis-rule steps of a copy of `snapshot` with `threads` threads.
+fn run(snapshot: &World, threads: usize, steps: u64) -> Result<Run, String> {
+    let mut world = snapshot.clone();
+    world
+        .set_settings(WorldSettings::default())
+        .map_err(|e| e.to_string())?;
+    let mut solver = PgsSolver::with_settings(PgsSettings {
+        threads,
+        ..PgsSettings::default()
+    });
+    let mut position = PgsPositionSolver::with_threads(threads);
+    let mut r = Run::default();
+    for _ in 0..steps {
+        let t0 = Instant::now();
+        let s = world
+            .step(&mut CarriedWarmStart, &mut solver, &mut position)
+            .map_err(|e| e.to_string())?;
+        r.wall += t0.elapsed().as_secs_f64();
+        r.solve += s.solve_seconds;
+        r.iterations += u64::from(s.velocity_iterations);
+        r.position_iterations += u64::from(s.position_iterations);
+        r.contacts += s.contacts as u64;
+    }
+    r.bits = world
+        .bodies()
+        .iter()
+        .flat_map(|b| b.state().map(f64::to_bits))
+        .collect();
+    Ok(r)
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn main() -> Result<(), String> {
+    let Some(o) = parse()? else {
+        return Ok(());
+    };
+    let t0 = Instant::now();
+    let scene = scene::pile(SEED, o.bodies).map_err(|e| e.to_string())?;
+    let mut world = scene.build(settle_world(50)).map_err(|e| e.to_string())?;
+    let (mut solver, mut position) = (PgsSolver::new(), PgsPositionSolver::new());
+    for _ in 0..o.settle {
+        world
+            .step(&mut CarriedWarmStart, &mut solver, &mut position)
+            .map_err(|e| e.to_string())?;
+    }
+    eprintln!(
+        "pile of {} circles settled for {} steps in {:.1} s",
+        o.bodies,
+        o.settle,
+        t0.elapsed().as_secs_f64()
+    );
+    let counts = [1, o.threads];
+    let mut runs: [Vec<Run>; 2] = [Vec::new(), Vec::new()];
+    for round in 0..o.rounds {
+        for (k, &threads) in counts.iter().enumerate() {
+            let r = run(&world, threads, o.steps)?;
+            eprintln!(
+                "round {round}, {threads} thread(s): {:.2} ms/step",
+                r.wall / o.steps as f64 * 1e3
+            );
+            runs[k].push(r);
+        }
+    }
+    let reference = &runs[0][0];
+    for r in runs.iter().flatten() {
+        if r.bits != reference.bits || r.iterations != reference.iterations {
+            return Err("runs with different thread counts ended in different states".into());
+        }
+    }
+    let per_step = |rs: &[Run], f: fn(&Run) -> f64| {
+        median(rs.iter().map(|r| f(r) / o.steps as f64 * 1e3).collect())
+    };
+    println!(
+        "Pile of {} circles (seed {SEED}) settled {} steps, then {} steps under the thesis stop \
+         rule, {} rounds; {:.0} contact points, {:.0} velocity iterations (slowest island) and \
+         {:.0} position iterations per step; every run bit-identical.\n",
+        o.bodies,
+        o.settle,
+        o.steps,
+        o.rounds,
+        reference.contacts as f64 / o.steps as f64,
+        reference.iterations as f64 / o.steps as f64,
+        reference.position_iterations as f64 / o.steps as f64,
+    );
+    println!("| threads | step ms (median) | velocity solve ms | rest ms | step / 1 thread |");
+    println!("|---:|---:|---:|---:|---:|");
+    let one = per_step(&runs[0], |r| r.wall);
+    for (k, &threads) in counts.iter().enumerate() {
+        let step = per_step(&runs[k], |r| r.wall);
+        let solve = per_step(&runs[k], |r| r.solve);
+        println!(
+            "| {threads} | {step:.1} | {solve:.1} | {:.1} | {:.3} |",
+            step - solve,
+            step / one
+        );
+    }
+    Ok(())
+}
