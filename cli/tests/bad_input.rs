@@ -245,6 +245,31 @@ fn cases(dir: &Path) -> Vec<Case> {
             ],
             "threads",
         ),
+        case(
+            "solver threads: zero",
+            &sim(&["--threads", "0"]),
+            "--threads 0: must be 1 to 64",
+        ),
+        case(
+            "solver threads: above the ceiling",
+            &sim(&["--threads", "1000"]),
+            "must be 1 to 64",
+        ),
+        case(
+            "solver threads for a solver without them",
+            &sim(&["--threads", "2", "--solver", "newton"]),
+            "only the pgs solver",
+        ),
+        case(
+            "solver threads twice, disagreeing",
+            &sim(&["--threads", "2", "--solver", "pgs:threads=4"]),
+            "disagrees",
+        ),
+        case(
+            "solver spec threads=0",
+            &sim(&["--solver", "pgs:threads=0"]),
+            "threads",
+        ),
         case("unknown preset", &sim(&["--preset", "nope"]), "preset"),
         case(
             "bad shard",
