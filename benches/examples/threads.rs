@@ -1,7 +1,8 @@
 //! One big island on several threads: the settled pile of `--bodies` circles (default
 //! 10 000) stepped under the thesis stop rule (cap 1 000, ∞-norm < 1e-4, position cap 250)
-//! with 1 thread and with `--threads` threads, from the same snapshot, alternately for
-//! `--rounds` rounds. Prints ms per step (whole step, velocity solve, the rest) per thread
+//! from the same snapshot, alternately for `--rounds` rounds: the plain one-thread solvers
+//! (unchunked sweep, position pass in problem order), the chunked plan on 1 thread and on
+//! `--threads` threads. Prints ms per step (whole step, velocity solve, the rest) per thread
 //! count and the ratio T threads / 1 thread, and checks that every run ends in the same
 //! bits (positions, velocities) whatever the thread count.
 //!
@@ -16,7 +17,7 @@ use std::time::Instant;
 
 use deepcontact_benches::{SEED, settle_world};
 use deepcontact_core::{CarriedWarmStart, World, WorldSettings, scene};
-use deepcontact_pgs::{PgsPositionSolver, PgsSettings, PgsSolver};
+use deepcontact_pgs::{PgsPositionSettings, PgsPositionSolver, PgsSettings, PgsSolver};
 
 /// Command-line options.
 struct Options {
@@ -75,17 +76,47 @@ struct Run {
     bits: Vec<u64>,
 }
 
-/// `steps` thesis-rule steps of a copy of `snapshot` with `threads` threads.
-fn run(snapshot: &World, threads: usize, steps: u64) -> Result<Run, String> {
+/// A configuration: the plain one-thread solvers (problem-order position pass, unchunked
+/// sweep), or the chunked plan on a number of threads.
+#[derive(Clone, Copy)]
+enum Config {
+    Plain,
+    Chunked(usize),
+}
+
+impl Config {
+    fn label(self) -> String {
+        match self {
+            Config::Plain => "1, unchunked".into(),
+            Config::Chunked(t) => format!("{t}"),
+        }
+    }
+
+    fn solvers(self) -> (PgsSolver, PgsPositionSolver) {
+        let (threads, from) = match self {
+            Config::Plain => (1, usize::MAX),
+            Config::Chunked(t) => (t, PgsSettings::default().parallel_min_points),
+        };
+        let solver = PgsSolver::with_settings(PgsSettings {
+            threads,
+            parallel_min_points: from,
+            ..PgsSettings::default()
+        });
+        let position = PgsPositionSolver::with_settings(PgsPositionSettings {
+            threads,
+            parallel_min_points: from,
+        });
+        (solver, position)
+    }
+}
+
+/// `steps` thesis-rule steps of a copy of `snapshot` in configuration `config`.
+fn run(snapshot: &World, config: Config, steps: u64) -> Result<Run, String> {
     let mut world = snapshot.clone();
     world
         .set_settings(WorldSettings::default())
         .map_err(|e| e.to_string())?;
-    let mut solver = PgsSolver::with_settings(PgsSettings {
-        threads,
-        ..PgsSettings::default()
-    });
-    let mut position = PgsPositionSolver::with_threads(threads);
+    let (mut solver, mut position) = config.solvers();
     let mut r = Run::default();
     for _ in 0..steps {
         let t0 = Instant::now();
@@ -130,20 +161,26 @@ fn main() -> Result<(), String> {
         o.settle,
         t0.elapsed().as_secs_f64()
     );
-    let counts = [1, o.threads];
-    let mut runs: [Vec<Run>; 2] = [Vec::new(), Vec::new()];
+    let configs = [
+        Config::Plain,
+        Config::Chunked(1),
+        Config::Chunked(o.threads),
+    ];
+    let mut runs: [Vec<Run>; 3] = [Vec::new(), Vec::new(), Vec::new()];
     for round in 0..o.rounds {
-        for (k, &threads) in counts.iter().enumerate() {
-            let r = run(&world, threads, o.steps)?;
+        for (k, &config) in configs.iter().enumerate() {
+            let r = run(&world, config, o.steps)?;
             eprintln!(
-                "round {round}, {threads} thread(s): {:.2} ms/step",
+                "round {round}, {} thread(s): {:.2} ms/step",
+                config.label(),
                 r.wall / o.steps as f64 * 1e3
             );
             runs[k].push(r);
         }
     }
-    let reference = &runs[0][0];
-    for r in runs.iter().flatten() {
+    // The chunked runs against each other: the same bits whatever the thread count.
+    let reference = &runs[1][0];
+    for r in runs[1..].iter().flatten() {
         if r.bits != reference.bits || r.iterations != reference.iterations {
             return Err("runs with different thread counts ended in different states".into());
         }
@@ -154,7 +191,8 @@ fn main() -> Result<(), String> {
     println!(
         "Pile of {} circles (seed {SEED}) settled {} steps, then {} steps under the thesis stop \
          rule, {} rounds; {:.0} contact points, {:.0} velocity iterations (slowest island) and \
-         {:.0} position iterations per step; every run bit-identical.\n",
+         {:.0} position iterations per step; the chunked runs bit-identical for every thread \
+         count (the unchunked run's position pass visits the points in another order).\n",
         o.bodies,
         o.settle,
         o.steps,
@@ -163,16 +201,22 @@ fn main() -> Result<(), String> {
         reference.iterations as f64 / o.steps as f64,
         reference.position_iterations as f64 / o.steps as f64,
     );
-    println!("| threads | step ms (median) | velocity solve ms | rest ms | step / 1 thread |");
-    println!("|---:|---:|---:|---:|---:|");
-    let one = per_step(&runs[0], |r| r.wall);
-    for (k, &threads) in counts.iter().enumerate() {
+    println!(
+        "| threads | step ms (median) | velocity solve ms | rest ms | step / chunked 1 thread | \
+         step / unchunked |"
+    );
+    println!("|---|---:|---:|---:|---:|---:|");
+    let plain = per_step(&runs[0], |r| r.wall);
+    let one = per_step(&runs[1], |r| r.wall);
+    for (k, &config) in configs.iter().enumerate() {
         let step = per_step(&runs[k], |r| r.wall);
         let solve = per_step(&runs[k], |r| r.solve);
         println!(
-            "| {threads} | {step:.1} | {solve:.1} | {:.1} | {:.3} |",
+            "| {} | {step:.1} | {solve:.1} | {:.1} | {:.3} | {:.3} |",
+            config.label(),
             step - solve,
-            step / one
+            step / one,
+            step / plain
         );
     }
     Ok(())

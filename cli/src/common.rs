@@ -67,6 +67,11 @@ pub struct SolverArgs {
     /// largest position impulse −C/K, as the original thesis code.
     #[arg(long, value_enum, default_value = "correction")]
     pub position_stop: PositionStopArg,
+    /// How the position pass measures a circle contact: `fixed` (the narrow phase's normal,
+    /// anchors rotating with the bodies, Box2D v3) or `remeasured` (from the current centres
+    /// every iteration, Box2D v2.3 as the original thesis code).
+    #[arg(long, value_enum, default_value = "fixed")]
+    pub circle_contact: CircleContactArg,
     /// `thesis`: the original code's choices (its stop rules, raw warm starts, its `copy`
     /// oracles, its initial worlds where the command has a scene left at `pile`), overriding
     /// `--norm`,
@@ -74,6 +79,15 @@ pub struct SolverArgs {
     /// `deepcontact_experiments::preset`.
     #[arg(long, default_value = "default")]
     pub preset: String,
+}
+
+/// How the position pass measures a circle contact.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum CircleContactArg {
+    /// The narrow phase's normal held fixed, anchors rotating (Box2D v3).
+    Fixed,
+    /// Re-measured from the current centres every iteration (Box2D v2.3).
+    Remeasured,
 }
 
 /// What the position pass's stop rule measures.
@@ -119,6 +133,10 @@ impl SolverArgs {
             position: deepcontact_core::PositionSettings {
                 linear_slop: self.linear_slop,
                 stop_on_impulse: matches!(self.position_stop, PositionStopArg::Impulse),
+                circle_contact: match self.circle_contact {
+                    CircleContactArg::Fixed => deepcontact_core::CircleContact::Fixed,
+                    CircleContactArg::Remeasured => deepcontact_core::CircleContact::Remeasured,
+                },
                 ..deepcontact_core::PositionSettings::default()
             },
             ..WorldSettings::default()

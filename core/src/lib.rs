@@ -41,7 +41,8 @@ pub use registry::{ProviderInfo, Registry, Spec, SpecError};
 pub use report::{SolveReport, StepReport};
 pub use shape::ShapeDesc;
 pub use solver::{
-    PositionReport, PositionSettings, PositionSolver, ResidualNorm, SolverSettings, VelocitySolver,
+    CircleContact, PositionReport, PositionSettings, PositionSolver, ResidualNorm, SolverSettings,
+    VelocitySolver,
 };
 pub use warm_start::{
     CarriedWarmStart, GuardPolicy, Observation, WarmStart, WarmStartContext, WarmStartError,

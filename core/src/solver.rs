@@ -207,6 +207,24 @@ pub struct PositionSettings {
     /// Measure the stop rule on the largest position impulse `−C/K` (kg·m) instead of the
     /// largest correction `C` (m), as the original thesis code does (default false).
     pub stop_on_impulse: bool,
+    /// How a circle contact is measured at the current poses (default
+    /// [`CircleContact::Fixed`]).
+    pub circle_contact: CircleContact,
+}
+
+/// How the position pass measures a circle contact (a point whose anchor on every rotating
+/// body is parallel to its normal) at the current poses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum CircleContact {
+    /// Like every other contact (Box2D v3's relax step): the narrow phase's normal held fixed,
+    /// the anchors moving and rotating with their bodies (default).
+    #[default]
+    Fixed,
+    /// As Box2D v2.3's `b2PositionSolverManifold` (the original thesis code): between two
+    /// movable circles the normal is re-measured from the current centres every iteration,
+    /// separation `|cB − cA| − (rA + rB)`, anchors on the line of centres; a circle on an
+    /// immovable body keeps the fixed normal and translates only. Neither has an angular term.
+    Remeasured,
 }
 
 impl Default for PositionSettings {
@@ -219,6 +237,7 @@ impl Default for PositionSettings {
             linear_slop: 0.0005,
             max_linear_correction: 0.2,
             stop_on_impulse: false,
+            circle_contact: CircleContact::Fixed,
         }
     }
 }

@@ -9,6 +9,7 @@
 //! | stop rule | max \|Δλ\| < 1e-4 (∞-norm, the thesis text) | per contact √(Δλn² + max(0, Δλt)²), max over contacts, ≤ 1e-4 (`ResidualNorm::Contact`) | the original ignores decreasing friction changes and the normal changes of two-point manifolds |
 //! | initial worlds | our seeded Gaussian placement | the original's exact float32 positions (scene `thesis`, seeds 12345–12354) | numpy's RandomState stream is not reproduced; other seeds need our placement |
 //! | position pass stop | largest correction C < 1e-4 m | largest position impulse −C/K ≤ 1e-4 | Box2D v2.4 measures the correction |
+//! | position pass, circle contacts | normal fixed at the narrow phase's, anchors rotating (Box2D v3) | re-measured from the centres every iteration, no angular term (Box2D v2.3, `CircleContact::Remeasured`) | one model for every shape; v3's is cheaper and as accurate for small corrections |
 //! | `copy`, `copy2`, `copy0` | solve to 1e-6, cap 10 000, ∞-norm | cold solve by the world's rule: 1e-4, cap 1 000, contact norm | the oracle should be near-exact |
 //! | warm start outside the friction cone | projected onto `\|λt\| ≤ μ λn` | applied raw (`pgs:start=raw`) | a start outside the cone is not a feasible iterate |
 //!
@@ -23,7 +24,7 @@
 //! `order=reversed|shuffled` — does not reproduce the effect here).
 
 use deepcontact_core::registry::Spec;
-use deepcontact_core::{Real, ResidualNorm, WorldSettings};
+use deepcontact_core::{CircleContact, Real, ResidualNorm, WorldSettings};
 
 use crate::ExperimentError;
 
@@ -62,6 +63,7 @@ impl Preset {
             world.position.stop_on_impulse = true;
             world.position.tolerance = 1e-4;
             world.position.max_iterations = 250;
+            world.position.circle_contact = CircleContact::Remeasured;
         }
         world
     }
@@ -131,6 +133,7 @@ mod tests {
         let w = t.world(WorldSettings::default());
         assert_eq!(w.solver.norm, ResidualNorm::Contact);
         assert!(w.position.stop_on_impulse);
+        assert_eq!(w.position.circle_contact, CircleContact::Remeasured);
         assert_eq!(t.scene(), Some("thesis"));
         let copy: Spec = "copy2".parse().unwrap();
         assert_eq!(

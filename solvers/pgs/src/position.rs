@@ -2,7 +2,8 @@
 
 use deepcontact_core::math::{Pose, Real, Vector, cross, rotate};
 use deepcontact_core::{
-    ContactProblem, CoreError, PositionReport, PositionSettings, PositionSolver, ProblemBody,
+    CircleContact, ContactProblem, CoreError, PositionReport, PositionSettings, PositionSolver,
+    ProblemBody,
 };
 
 /// Options of the position pass.
@@ -120,18 +121,34 @@ pub(crate) fn correct_point<P: Poses + ?Sized>(
             angle: tb,
         },
     ) = (poses.get(ia), poses.get(ib));
-    let ra = rotate(&ra0, ta - a0.angle);
-    let rb = rotate(&rb0, tb - b0.angle);
-    // s = s0 + n · [(cB + rB) − (cA + rA) − ((cB0 + rB0) − (cA0 + rA0))]
-    let d = (cb + rb - ca - ra) - (b0.position + rb0 - a0.position - ra0);
-    let sep = p.separation + p.normal.dot(&d);
+    let remeasure = settings.circle_contact == CircleContact::Remeasured
+        && on_centre_line(&ra0, &p.normal, a0)
+        && on_centre_line(&rb0, &p.normal, b0);
+    let (ra, rb, normal, sep) = if !remeasure {
+        let ra = rotate(&ra0, ta - a0.angle);
+        let rb = rotate(&rb0, tb - b0.angle);
+        // s = s0 + n · [(cB + rB) − (cA + rA) − ((cB0 + rB0) − (cA0 + rA0))]
+        let d = (cb + rb - ca - ra) - (b0.position + rb0 - a0.position - ra0);
+        (ra, rb, p.normal, p.separation + p.normal.dot(&d))
+    } else if !immovable(a0) && !immovable(b0) {
+        // Box2D v2.3, two circles: rA + rB = n0 · (cB0 − cA0) − s0; n = d / |d|.
+        let radii = p.normal.dot(&(b0.position - a0.position)) - p.separation;
+        let d = cb - ca;
+        let len = d.norm();
+        let n = if len > 1e-12 { d / len } else { p.normal };
+        (0.5 * d, -0.5 * d, n, len - radii)
+    } else {
+        // A circle on an immovable body: the fixed normal, translation only.
+        let d = (cb - ca) - (b0.position - a0.position);
+        (ra0, rb0, p.normal, p.separation + p.normal.dot(&d))
+    };
     // Prevent large corrections and allow slop.
     let c = (settings.baumgarte * (sep + settings.linear_slop))
         .clamp(-settings.max_linear_correction, 0.0);
-    let (rna, rnb) = (cross(&ra, &p.normal), cross(&rb, &p.normal));
+    let (rna, rnb) = (cross(&ra, &normal), cross(&rb, &normal));
     let k = a0.inv_mass + b0.inv_mass + a0.inv_inertia * rna * rna + b0.inv_inertia * rnb * rnb;
     let impulse = if k > 0.0 { -c / k } else { 0.0 };
-    let pv = impulse * p.normal;
+    let pv = impulse * normal;
     if !(skip_immovable && immovable(a0)) {
         poses.set(
             ia,
@@ -149,6 +166,13 @@ pub(crate) fn correct_point<P: Poses + ?Sized>(
         correction: c.abs(),
         impulse: impulse.abs(),
     }
+}
+
+/// Whether a contact's anchor `r` on body `b` lies on the line of its normal `n` (a circle's
+/// anchor), or the body does not rotate.
+#[inline(always)]
+fn on_centre_line(r: &Vector, n: &Vector, b: &ProblemBody) -> bool {
+    b.inv_inertia == 0.0 || cross(r, n).abs() <= 1e-9 * r.norm().max(1.0)
 }
 
 /// Whether a body cannot be moved by a correction.
