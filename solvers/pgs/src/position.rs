@@ -39,7 +39,8 @@ impl Default for PgsPositionSettings {
 pub struct PgsPositionSolver {
     /// Options.
     pub settings: PgsPositionSettings,
-    anchors: Vec<(Vector, Vector)>,
+    /// The points laid out for the pass, in the order it visits them.
+    rows: Vec<PosRow>,
     /// The coloured plan: point indices colour by colour, and each colour's range in it.
     plan: crate::position_chunked::Plan,
 }
@@ -97,20 +98,68 @@ impl Poses for [Pose] {
     }
 }
 
-/// Corrects point `k` of `problem` at the current `poses`; with `skip_immovable`, bodies
-/// that cannot move are not written (so threads never write a shared wall).
+/// One contact point laid out for the pass: its bodies' inverse masses and poses at the time
+/// the contacts were computed copied in, so that a sweep reads one row per point in order.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct PosRow {
+    a: u32,
+    b: u32,
+    ra0: Vector,
+    rb0: Vector,
+    normal: Vector,
+    separation: Real,
+    ma: Real,
+    ia: Real,
+    mb: Real,
+    ib: Real,
+    ca0: Vector,
+    ta0: Real,
+    cb0: Vector,
+    tb0: Real,
+    /// Re-measured as Box2D v2.3 does ([`CircleContact::Remeasured`] on a circle contact).
+    remeasure: bool,
+}
+
+impl PosRow {
+    /// Point `k` of `problem` under `settings`.
+    pub(crate) fn new(problem: &ContactProblem, k: usize, settings: &PositionSettings) -> Self {
+        let p = &problem.points[k];
+        let (a0, b0) = (
+            &problem.bodies[p.body_a as usize],
+            &problem.bodies[p.body_b as usize],
+        );
+        Self {
+            a: p.body_a,
+            b: p.body_b,
+            ra0: p.r_a,
+            rb0: p.r_b,
+            normal: p.normal,
+            separation: p.separation,
+            ma: a0.inv_mass,
+            ia: a0.inv_inertia,
+            mb: b0.inv_mass,
+            ib: b0.inv_inertia,
+            ca0: a0.position,
+            ta0: a0.angle,
+            cb0: b0.position,
+            tb0: b0.angle,
+            remeasure: settings.circle_contact == CircleContact::Remeasured
+                && on_centre_line(&p.r_a, &p.normal, a0)
+                && on_centre_line(&p.r_b, &p.normal, b0),
+        }
+    }
+}
+
+/// Corrects one point at the current `poses`; with `skip_immovable`, bodies that cannot move
+/// are not written (so threads never write a shared wall).
 #[inline(always)]
 pub(crate) fn correct_point<P: Poses + ?Sized>(
-    problem: &ContactProblem,
-    k: usize,
-    (ra0, rb0): (Vector, Vector),
+    row: &PosRow,
     settings: &PositionSettings,
     poses: &mut P,
     skip_immovable: bool,
 ) -> Correction {
-    let p = &problem.points[k];
-    let (ia, ib) = (p.body_a as usize, p.body_b as usize);
-    let (a0, b0) = (&problem.bodies[ia], &problem.bodies[ib]);
+    let (ia, ib) = (row.a as usize, row.b as usize);
     let (
         Pose {
             position: ca,
@@ -121,44 +170,50 @@ pub(crate) fn correct_point<P: Poses + ?Sized>(
             angle: tb,
         },
     ) = (poses.get(ia), poses.get(ib));
-    let remeasure = settings.circle_contact == CircleContact::Remeasured
-        && on_centre_line(&ra0, &p.normal, a0)
-        && on_centre_line(&rb0, &p.normal, b0);
-    let (ra, rb, normal, sep) = if !remeasure {
-        let ra = rotate(&ra0, ta - a0.angle);
-        let rb = rotate(&rb0, tb - b0.angle);
+    let (a_fixed, b_fixed) = (
+        row.ma == 0.0 && row.ia == 0.0,
+        row.mb == 0.0 && row.ib == 0.0,
+    );
+    let (ra, rb, normal, sep) = if !row.remeasure {
+        let ra = rotate(&row.ra0, ta - row.ta0);
+        let rb = rotate(&row.rb0, tb - row.tb0);
         // s = s0 + n · [(cB + rB) − (cA + rA) − ((cB0 + rB0) − (cA0 + rA0))]
-        let d = (cb + rb - ca - ra) - (b0.position + rb0 - a0.position - ra0);
-        (ra, rb, p.normal, p.separation + p.normal.dot(&d))
-    } else if !immovable(a0) && !immovable(b0) {
+        let d = (cb + rb - ca - ra) - (row.cb0 + row.rb0 - row.ca0 - row.ra0);
+        (ra, rb, row.normal, row.separation + row.normal.dot(&d))
+    } else if !a_fixed && !b_fixed {
         // Box2D v2.3, two circles: rA + rB = n0 · (cB0 − cA0) − s0; n = d / |d|.
-        let radii = p.normal.dot(&(b0.position - a0.position)) - p.separation;
+        let radii = row.normal.dot(&(row.cb0 - row.ca0)) - row.separation;
         let d = cb - ca;
         let len = d.norm();
-        let n = if len > 1e-12 { d / len } else { p.normal };
+        let n = if len > 1e-12 { d / len } else { row.normal };
         (0.5 * d, -0.5 * d, n, len - radii)
     } else {
         // A circle on an immovable body: the fixed normal, translation only.
-        let d = (cb - ca) - (b0.position - a0.position);
-        (ra0, rb0, p.normal, p.separation + p.normal.dot(&d))
+        let d = (cb - ca) - (row.cb0 - row.ca0);
+        (
+            row.ra0,
+            row.rb0,
+            row.normal,
+            row.separation + row.normal.dot(&d),
+        )
     };
     // Prevent large corrections and allow slop.
     let c = (settings.baumgarte * (sep + settings.linear_slop))
         .clamp(-settings.max_linear_correction, 0.0);
     let (rna, rnb) = (cross(&ra, &normal), cross(&rb, &normal));
-    let k = a0.inv_mass + b0.inv_mass + a0.inv_inertia * rna * rna + b0.inv_inertia * rnb * rnb;
+    let k = row.ma + row.mb + row.ia * rna * rna + row.ib * rnb * rnb;
     let impulse = if k > 0.0 { -c / k } else { 0.0 };
     let pv = impulse * normal;
-    if !(skip_immovable && immovable(a0)) {
+    if !(skip_immovable && a_fixed) {
         poses.set(
             ia,
-            Pose::new(ca - a0.inv_mass * pv, ta - a0.inv_inertia * cross(&ra, &pv)),
+            Pose::new(ca - row.ma * pv, ta - row.ia * cross(&ra, &pv)),
         );
     }
-    if !(skip_immovable && immovable(b0)) {
+    if !(skip_immovable && b_fixed) {
         poses.set(
             ib,
-            Pose::new(cb + b0.inv_mass * pv, tb + b0.inv_inertia * cross(&rb, &pv)),
+            Pose::new(cb + row.mb * pv, tb + row.ib * cross(&rb, &pv)),
         );
     }
     Correction {
@@ -258,15 +313,17 @@ impl PositionSolver for PgsPositionSolver {
         if problem.points.is_empty() {
             return Ok(report);
         }
-        // Anchors relative to the centres at the time the contacts were computed.
-        self.anchors.clear();
-        self.anchors
-            .extend(problem.points.iter().map(|p| (p.r_a, p.r_b)));
         if problem.points.len() >= self.settings.parallel_min_points {
             self.plan.build(problem);
+            self.rows.clear();
+            self.rows.extend(
+                self.plan
+                    .order()
+                    .iter()
+                    .map(|&k| PosRow::new(problem, k as usize, settings)),
+            );
             crate::position_chunked::solve(
-                problem,
-                &self.anchors,
+                &self.rows,
                 &self.plan,
                 crate::sync::effective_threads(self.settings.threads),
                 settings,
@@ -274,10 +331,13 @@ impl PositionSolver for PgsPositionSolver {
                 &mut report,
             );
         } else {
+            self.rows.clear();
+            self.rows
+                .extend((0..problem.points.len()).map(|k| PosRow::new(problem, k, settings)));
             for it in 0..settings.max_iterations {
                 let mut m = PassMeasures::default();
-                for (k, &anchors) in self.anchors.iter().enumerate() {
-                    m.add(&correct_point(problem, k, anchors, settings, poses, false));
+                for row in &self.rows {
+                    m.add(&correct_point(row, settings, poses, false));
                 }
                 if m.judge(it, settings, &mut report) {
                     break;

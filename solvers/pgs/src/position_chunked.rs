@@ -11,7 +11,7 @@
 use deepcontact_core::math::{Pose, Vector};
 use deepcontact_core::{ContactProblem, PositionReport, PositionSettings};
 
-use crate::position::{PassMeasures, Poses, correct_point, immovable};
+use crate::position::{PassMeasures, PosRow, Poses, correct_point, immovable};
 use crate::sync::{Cell3, SpinBarrier, owner};
 
 /// Points per chunk: the unit a thread takes.
@@ -26,7 +26,8 @@ const COLOURS: usize = 64;
 pub(crate) struct Plan {
     /// Points per chunk ([`CHUNK`]).
     pub(crate) chunk: usize,
-    /// Point indices, colour by colour (problem order within a colour).
+    /// Point indices, colour by colour (problem order within a colour); the pass's rows are
+    /// laid out in this order.
     order: Vec<u32>,
     /// Per non-empty colour: its range in `order`, and whether it is the overflow colour.
     colours: Vec<(std::ops::Range<usize>, bool)>,
@@ -48,6 +49,11 @@ impl Default for Plan {
 }
 
 impl Plan {
+    /// Point indices, colour by colour.
+    pub(crate) fn order(&self) -> &[u32] {
+        &self.order
+    }
+
     /// Colours the points of `problem` (buffers reused).
     pub(crate) fn build(&mut self, problem: &ContactProblem) {
         self.body_colours.clear();
@@ -137,11 +143,9 @@ impl Poses for Shared<'_> {
 
 /// What every thread shares.
 struct Common<'a> {
-    problem: &'a ContactProblem,
-    anchors: &'a [(Vector, Vector)],
     settings: &'a PositionSettings,
-    /// Per colour, per thread: the points it corrects, in order.
-    work: Vec<Vec<&'a [u32]>>,
+    /// Per colour, per thread: the rows it corrects, in order.
+    work: Vec<Vec<&'a [PosRow]>>,
     poses: Vec<Cell3>,
     /// Per iteration parity, per thread: its measures (min separation, max correction, max
     /// impulse).
@@ -149,13 +153,13 @@ struct Common<'a> {
     barrier: SpinBarrier,
 }
 
-/// Runs the pass in the coloured `plan` (its chunks of `plan.chunk` points) on `threads`
+/// Runs the pass over `rows` (laid out in the order of `plan`, its chunks of `plan.chunk`
+/// points) on `threads`
 /// threads (≥ 1; fewer when no colour has that many chunks), as the one-thread loop
 /// of [`crate::PgsPositionSolver`] does in problem order: same corrections, same stop rule,
 /// same report.
 pub(crate) fn solve(
-    problem: &ContactProblem,
-    anchors: &[(Vector, Vector)],
+    rows: &[PosRow],
     plan: &Plan,
     threads: usize,
     settings: &PositionSettings,
@@ -173,7 +177,7 @@ pub(crate) fn solve(
         .colours
         .iter()
         .map(|(range, overflow)| {
-            let points = &plan.order[range.clone()];
+            let points = &rows[range.clone()];
             let mut per_thread = vec![&points[..0]; threads];
             if *overflow {
                 per_thread[0] = points;
@@ -193,8 +197,6 @@ pub(crate) fn solve(
         })
         .collect();
     let common = Common {
-        problem,
-        anchors,
         settings,
         work,
         poses: poses
@@ -229,18 +231,8 @@ fn worker(common: &Common<'_>, t: usize, report: &mut PositionReport) {
         let mut mine = PassMeasures::default();
         let last = common.work.len().saturating_sub(1);
         for (c, per_thread) in common.work.iter().enumerate() {
-            for &k in per_thread[t] {
-                let k = k as usize;
-                let anchors = common.anchors[k];
-                let corr = correct_point(
-                    common.problem,
-                    k,
-                    anchors,
-                    common.settings,
-                    &mut poses,
-                    true,
-                );
-                mine.add(&corr);
+            for row in per_thread[t] {
+                mine.add(&correct_point(row, common.settings, &mut poses, true));
             }
             if c == last {
                 slots[t].store([mine.min_separation, mine.max_correction, mine.max_impulse]);
