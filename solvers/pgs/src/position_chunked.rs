@@ -2,17 +2,18 @@
 //!
 //! Points are coloured greedily in problem order so that no two points of a colour move the
 //! same body (immovable bodies never conflict: they are not written), then visited colour by
-//! colour; each colour's points are cut into chunks of [`CHUNK`] points and thread `t` of
-//! `T` takes a contiguous run of them. A barrier after each colour makes its corrections
-//! visible to the next. The pass's measures are minima and maxima, which do not depend on
-//! the order they are folded in, so every thread reaches the same stop decision and the
-//! result is the same bits for any `T`.
+//! colour; each colour's points are cut into chunks of [`CHUNK`] points, the work items of a
+//! phase ([`crate::sync::run_phased`]): an item starts once the earlier colours are done. The
+//! pass's measures are minima and maxima, which do not depend on the order they are folded
+//! in, so the result is the same bits for any thread count.
 
 use deepcontact_core::math::{Pose, Vector};
 use deepcontact_core::{ContactProblem, PositionReport, PositionSettings};
 
 use crate::position::{PassMeasures, PosRow, Poses, correct_point, immovable};
-use crate::sync::{Cell3, SpinBarrier, owner};
+use std::sync::Mutex;
+
+use crate::sync::{Cell3, phase_starts, run_phased};
 
 /// Points per chunk: the unit a thread takes.
 pub(crate) const CHUNK: usize = 64;
@@ -141,23 +142,10 @@ impl Poses for Shared<'_> {
     }
 }
 
-/// What every thread shares.
-struct Common<'a> {
-    settings: &'a PositionSettings,
-    /// Per colour, per thread: the rows it corrects, in order.
-    work: Vec<Vec<&'a [PosRow]>>,
-    poses: Vec<Cell3>,
-    /// Per iteration parity, per thread: its measures (min separation, max correction, max
-    /// impulse).
-    slots: [Vec<Cell3>; 2],
-    barrier: SpinBarrier,
-}
-
 /// Runs the pass over `rows` (laid out in the order of `plan`, its chunks of `plan.chunk`
-/// points) on `threads`
-/// threads (≥ 1; fewer when no colour has that many chunks), as the one-thread loop
-/// of [`crate::PgsPositionSolver`] does in problem order: same corrections, same stop rule,
-/// same report.
+/// points) on up to `threads` threads (≥ 1; no more than the widest colour has chunks), as
+/// the one-thread loop of [`crate::PgsPositionSolver`] does in problem order: same
+/// corrections, same stop rule, same report.
 pub(crate) fn solve(
     rows: &[PosRow],
     plan: &Plan,
@@ -173,74 +161,53 @@ pub(crate) fn solve(
         .iter()
         .map(|(range, _)| range.len().div_ceil(chunk));
     let threads = threads.min(widest.max().unwrap_or(1)).max(1);
-    let work = plan
-        .colours
-        .iter()
-        .map(|(range, overflow)| {
-            let points = &rows[range.clone()];
-            let mut per_thread = vec![&points[..0]; threads];
-            if *overflow {
-                per_thread[0] = points;
-            } else {
-                // Contiguous runs of whole chunks per thread.
-                let n_chunks = points.len().div_ceil(chunk);
-                let first = |t: usize| {
-                    (0..n_chunks)
-                        .find(|&j| owner(j, n_chunks, threads) >= t)
-                        .map_or(points.len(), |j| j * chunk)
-                };
-                for (t, run) in per_thread.iter_mut().enumerate() {
-                    *run = &points[first(t)..first(t + 1)];
+    // Items colour by colour: chunks of points (the overflow colour, which may move a body
+    // twice, as one item in order).
+    let mut items: Vec<&[PosRow]> = Vec::new();
+    let mut counts = Vec::with_capacity(plan.colours.len());
+    for (range, overflow) in &plan.colours {
+        let before = items.len();
+        if *overflow {
+            items.push(&rows[range.clone()]);
+        } else {
+            items.extend(rows[range.clone()].chunks(chunk));
+        }
+        counts.push(items.len() - before);
+    }
+    if threads == 1 {
+        // The same items in the same order on the calling thread, without shared cells.
+        for it in 0..settings.max_iterations {
+            let mut all = PassMeasures::default();
+            for item in &items {
+                for row in *item {
+                    all.add(&correct_point(row, settings, poses, true));
                 }
             }
-            per_thread
-        })
-        .collect();
-    let common = Common {
-        settings,
-        work,
-        poses: poses
-            .iter()
-            .map(|p| Cell3::new([p.position.x, p.position.y, p.angle]))
-            .collect(),
-        slots: [
-            (0..threads).map(|_| Cell3::default()).collect(),
-            (0..threads).map(|_| Cell3::default()).collect(),
-        ],
-        barrier: SpinBarrier::new(threads),
-    };
-    std::thread::scope(|scope| {
-        for t in 1..threads {
-            let common = &common;
-            scope.spawn(move || worker(common, t, &mut PositionReport::default()));
+            if all.judge(it, settings, report) {
+                break;
+            }
         }
-        worker(&common, 0, report);
-    });
-    for (i, pose) in poses.iter_mut().enumerate() {
-        *pose = Shared(&common.poses).get(i);
+        return;
     }
-}
-
-/// One thread's loop: per iteration, per colour its points then a barrier (its measures
-/// published before the last), then the fold of every thread's measures and the verdict.
-fn worker(common: &Common<'_>, t: usize, report: &mut PositionReport) {
-    let mut poses = Shared(&common.poses);
-    let mut epoch = 0;
-    for it in 0..common.settings.max_iterations {
-        let slots = &common.slots[it as usize % 2];
-        let mut mine = PassMeasures::default();
-        let last = common.work.len().saturating_sub(1);
-        for (c, per_thread) in common.work.iter().enumerate() {
-            for row in per_thread[t] {
-                mine.add(&correct_point(row, common.settings, &mut poses, true));
-            }
-            if c == last {
-                slots[t].store([mine.min_separation, mine.max_correction, mine.max_impulse]);
-            }
-            common.barrier.wait(&mut epoch);
+    let starts = phase_starts(counts);
+    let slots: [Vec<Cell3>; 2] =
+        [0, 1].map(|_| (0..items.len()).map(|_| Cell3::default()).collect());
+    let shared: Vec<Cell3> = poses
+        .iter()
+        .map(|p| Cell3::new([p.position.x, p.position.y, p.angle]))
+        .collect();
+    let passes = Mutex::new(Vec::new());
+    let process = |item: usize, parity: usize| {
+        let mut poses = Shared(&shared);
+        let mut m = PassMeasures::default();
+        for row in items[item] {
+            m.add(&correct_point(row, settings, &mut poses, true));
         }
+        slots[parity][item].store([m.min_separation, m.max_correction, m.max_impulse]);
+    };
+    let judge = |it: u32, parity: usize| {
         let mut all = PassMeasures::default();
-        for slot in slots {
+        for slot in &slots[parity] {
             let [min_separation, max_correction, max_impulse] = slot.load();
             all.merge(&PassMeasures {
                 min_separation,
@@ -248,8 +215,21 @@ fn worker(common: &Common<'_>, t: usize, report: &mut PositionReport) {
                 max_impulse,
             });
         }
-        if all.judge(it, common.settings, report) {
-            return;
-        }
+        passes
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .push(all);
+        all.judge(it, settings, &mut PositionReport::default())
+    };
+    run_phased(threads, settings.max_iterations, &starts, &process, &judge);
+    for (i, pose) in poses.iter_mut().enumerate() {
+        *pose = Shared(&shared).get(i);
+    }
+    // The report as the last judged iteration left it.
+    let passes = passes
+        .into_inner()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    if let Some((it, last)) = passes.iter().enumerate().next_back() {
+        last.judge(it as u32, settings, report);
     }
 }

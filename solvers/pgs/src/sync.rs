@@ -1,7 +1,7 @@
 //! What threads that share one island's sweep synchronise with: three `f64`s in atomics (a
-//! velocity, a pose, a set of measures) and a spinning barrier between colours.
+//! velocity, a pose, a set of measures) and a queue of phased work items.
 
-use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering as Mem};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering as Mem};
 
 /// Three `f64`s that threads share, as bits in relaxed atomics (plain loads and stores on
 /// x86-64 and AArch64): each is written by one thread within a colour, and the barrier
@@ -30,121 +30,138 @@ impl Cell3 {
     }
 }
 
-/// Spins (about a millisecond) before a waiting thread starts yielding its core, when every
-/// thread can have a core of its own: a yield hands the core to any other runnable process
-/// for a whole time slice, so it is only for a partner that has lost its core, never for one
-/// still sweeping its part of a colour.
-const SPINS: u32 = 1 << 16;
+/// Spins before a waiting thread yields its core: a `pause` costs tens of cycles on current
+/// x86 cores, so this is a microsecond or so, what a partner finishing its item needs; one
+/// that lost its core is not waited for by spinning.
+const SPINS: u32 = 64;
 
-/// Spins before yielding when there are more threads than cores: a partner without a core
-/// only runs once the waiting threads give theirs up.
-const SPINS_OVERSUBSCRIBED: u32 = 1 << 6;
-
-/// A reusable barrier for a fixed number of threads: spins, then yields.
-#[derive(Debug)]
-pub(crate) struct SpinBarrier {
-    threads: usize,
-    spins: u32,
-    arrived: AtomicUsize,
-    epoch: AtomicUsize,
+/// Waits until `ready()` holds: spins briefly, then yields.
+#[inline]
+fn wait_until(ready: impl Fn() -> bool) {
+    let mut spins = 0;
+    while !ready() {
+        if spins < SPINS {
+            spins += 1;
+            std::hint::spin_loop();
+        } else {
+            std::thread::yield_now();
+        }
+    }
 }
 
-impl SpinBarrier {
-    /// A barrier for `threads` threads (≥ 1).
-    pub(crate) fn new(threads: usize) -> Self {
-        Self {
-            threads,
-            spins: if threads <= cores() {
-                SPINS
-            } else {
-                SPINS_OVERSUBSCRIBED
-            },
-            arrived: AtomicUsize::new(0),
-            epoch: AtomicUsize::new(0),
-        }
+/// Runs iterations of phased work on `threads` threads (≥ 1; the caller is one of them).
+///
+/// An iteration is `phase_starts.last()` items in phases (`phase_starts`: the first item of
+/// each phase, ascending from 0, then the item count). Threads claim items one at a time, in
+/// order, from one counter; an item starts once every item of the earlier phases of its
+/// iteration is done, and the first items of an iteration once the previous one is judged.
+/// The thread that completes an iteration's last item calls `judge(iteration, parity)`
+/// (0-based; `parity` = iteration mod 2, which `process(item, parity)` also gets); `true`
+/// stops the run. A thread that loses its core holds up at most the one item it claimed;
+/// the others go on with the rest. What an item computes must not depend on which thread
+/// runs it. Returns the iterations run.
+pub(crate) fn run_phased(
+    threads: usize,
+    max_iterations: u32,
+    phase_starts: &[usize],
+    process: &(dyn Fn(usize, usize) + Sync),
+    judge: &(dyn Fn(u32, usize) -> bool + Sync),
+) -> u32 {
+    let total = phase_starts.last().copied().unwrap_or(0);
+    if total == 0 {
+        return 0;
     }
-
-    /// Waits for every thread; `epoch` is the caller's count of barriers passed. The last
-    /// thread to arrive resets the count before it publishes the new epoch (release), so a
-    /// thread that sees the epoch (acquire) also sees the reset and every write made before
-    /// the barrier.
-    pub(crate) fn wait(&self, epoch: &mut usize) {
-        *epoch += 1;
-        if self.arrived.fetch_add(1, Mem::AcqRel) + 1 == self.threads {
-            self.arrived.store(0, Mem::Relaxed);
-            self.epoch.store(*epoch, Mem::Release);
-            return;
-        }
-        let mut spins = 0;
-        while self.epoch.load(Mem::Acquire) != *epoch {
-            if spins < self.spins {
-                spins += 1;
-                std::hint::spin_loop();
-            } else {
-                std::thread::yield_now();
+    let (next, done, judged) = (
+        AtomicUsize::new(0),
+        AtomicUsize::new(0),
+        AtomicUsize::new(0),
+    );
+    let stopped = AtomicBool::new(false);
+    let work = || {
+        loop {
+            let w = next.fetch_add(1, Mem::Relaxed);
+            let (it, item) = (w / total, w % total);
+            if it >= max_iterations as usize {
+                return;
+            }
+            if it > 0 {
+                wait_until(|| judged.load(Mem::Acquire) >= it);
+                if stopped.load(Mem::Relaxed) {
+                    return;
+                }
+            }
+            // Every item of the earlier phases of this iteration done.
+            let phase = phase_starts.partition_point(|&s| s <= item) - 1;
+            let need = it * total + phase_starts[phase];
+            wait_until(|| done.load(Mem::Acquire) >= need);
+            process(item, it % 2);
+            if done.fetch_add(1, Mem::AcqRel) + 1 == (it + 1) * total {
+                if judge(it as u32, it % 2) {
+                    stopped.store(true, Mem::Relaxed);
+                }
+                judged.store(it + 1, Mem::Release);
             }
         }
-    }
+    };
+    std::thread::scope(|scope| {
+        for _ in 1..threads {
+            scope.spawn(work);
+        }
+        work();
+    });
+    judged.load(Mem::Acquire) as u32
 }
 
 /// Threads to run for a request of `requested`: no more than the cores this process may
-/// use (more would wait at every barrier for a partner without a core). The result never
-/// depends on it.
+/// use. The result never depends on it.
 pub(crate) fn effective_threads(requested: usize) -> usize {
-    requested.clamp(1, cores())
+    let cores = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
+    requested.clamp(1, cores)
 }
 
-/// The cores this process may use.
-fn cores() -> usize {
-    std::thread::available_parallelism().map_or(1, std::num::NonZero::get)
-}
-
-/// The owner of chunk `j` of `n` among `threads` threads: contiguous runs, thread
-/// `⌊j · threads / n⌋`.
-pub(crate) fn owner(j: usize, n: usize, threads: usize) -> usize {
-    j * threads / n
+/// The first items of each phase, from each phase's item count: `[0, n0, n0 + n1, …]`.
+pub(crate) fn phase_starts(counts: impl IntoIterator<Item = usize>) -> Vec<usize> {
+    let mut starts = vec![0];
+    for n in counts {
+        starts.push(starts.last().copied().unwrap_or(0) + n);
+    }
+    starts
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::sync::Mutex;
 
     #[test]
-    fn the_barrier_orders_every_write_before_it() {
-        // Four threads, 200 rounds: in round r each writes r into its own cell, waits, then
-        // reads every cell; all must read r everywhere (no thread runs a round ahead).
-        let cells: Vec<Cell3> = (0..4).map(|_| Cell3::default()).collect();
-        let barrier = SpinBarrier::new(4);
-        std::thread::scope(|s| {
-            for t in 0..4 {
-                let (cells, barrier) = (&cells, &barrier);
-                s.spawn(move || {
-                    let mut epoch = 0;
-                    for r in 0..200 {
-                        cells[t].store([r as f64; 3]);
-                        barrier.wait(&mut epoch);
-                        for c in cells {
-                            assert_eq!(c.load(), [r as f64; 3]);
-                        }
-                        barrier.wait(&mut epoch);
-                    }
-                });
-            }
-        });
-    }
-
-    #[test]
-    fn owners_are_contiguous_and_cover_every_thread_that_has_work() {
-        for n in 1..40 {
-            for threads in 1..6 {
-                let owners: Vec<usize> = (0..n).map(|j| owner(j, n, threads)).collect();
-                assert!(owners.windows(2).all(|w| w[0] <= w[1]));
-                assert_eq!(owners[0], 0);
-                assert!(*owners.last().unwrap() < threads);
-                if n >= threads {
-                    assert_eq!(*owners.last().unwrap(), threads - 1);
+    fn phased_items_run_in_phase_order_and_the_judge_stops_the_run() {
+        // Three phases of 5, 1 and 7 items; each item records (iteration, phase) and checks
+        // that every item of the earlier phases of its iteration has run.
+        let starts = phase_starts([5, 1, 7]);
+        for threads in 1..=4 {
+            let log = Mutex::new(Vec::new());
+            let counts: Vec<AtomicUsize> = (0..3).map(|_| AtomicUsize::new(0)).collect();
+            let judged = Mutex::new(Vec::new());
+            let process = |item: usize, parity: usize| {
+                let phase = starts.partition_point(|&s| s <= item) - 1;
+                for (earlier, c) in counts.iter().enumerate().take(phase) {
+                    let n = starts[earlier + 1] - starts[earlier];
+                    assert_eq!(c.load(Mem::SeqCst) % n, 0, "phase {earlier} unfinished");
                 }
-            }
+                counts[phase].fetch_add(1, Mem::SeqCst);
+                log.lock().unwrap().push((parity, phase));
+            };
+            let judge = |it: u32, parity: usize| {
+                assert_eq!(it as usize % 2, parity);
+                judged.lock().unwrap().push(it);
+                it == 6
+            };
+            let ran = run_phased(threads, 100, &starts, &process, &judge);
+            assert_eq!(ran, 7, "{threads} threads");
+            assert_eq!(*judged.lock().unwrap(), (0..7).collect::<Vec<_>>());
+            assert_eq!(log.lock().unwrap().len(), 7 * 13);
+            // The cap ends a run that the judge never stops.
+            assert_eq!(run_phased(threads, 3, &starts, &process, &|_, _| false), 3);
         }
     }
 }

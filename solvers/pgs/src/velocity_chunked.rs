@@ -1,17 +1,19 @@
 //! The chunked sweep of a large island, on one thread or several.
 //!
-//! Each colour's batches are cut into chunks of [`CHUNK`] batches; thread `t` of `T` takes a
-//! contiguous run of every colour's chunks, and thread 0 also the colour's one-at-a-time
-//! manifolds. Manifolds of one colour share no movable body, so the threads never write the
-//! same velocity; a barrier after each colour makes its writes visible to the next colour
-//! (still Gauss-Seidel: every row sees the latest velocities). Each chunk's impulse-change
-//! measures go to a slot of their own and every thread folds the slots in slot order, so all
-//! threads reach the same stop decision and the result is the same bits for any `T`
-//! (`T = 1` runs the same plan on the calling thread).
+//! Each colour's batches are cut into chunks of [`CHUNK`] batches, and its one-at-a-time
+//! manifolds make one item more: the work items of a phase ([`crate::sync::run_phased`]).
+//! Threads claim items in order; manifolds of one colour share no movable body, so the items
+//! of a colour never write the same velocity, and an item starts only once the earlier
+//! colours are done (still Gauss-Seidel: every row sees the latest velocities). Each item's
+//! impulse-change measures go to a slot of their own, folded in slot order once the sweep is
+//! done, so the result is the same bits for any thread count and any assignment of items to
+//! threads (one thread runs the same items in the same order).
 
 use deepcontact_core::{ResidualNorm, SolveReport, SolverSettings};
 
-use crate::sync::{Cell3, SpinBarrier, owner};
+use std::sync::Mutex;
+
+use crate::sync::{Cell3, phase_starts, run_phased};
 use crate::velocity::{
     Batch, LaneSweep, Manifold, Row, Segment, Sweep, Vel, Velocities, Verdict, judge, sweep_batch,
     sweep_manifold,
@@ -65,30 +67,16 @@ fn read(slot: &Cell3) -> Sweep {
     }
 }
 
-/// What every thread shares during the loop.
-struct Common<'a> {
-    segments: &'a [Segment],
-    /// Per segment: the slot of its one-at-a-time manifolds.
-    serial_slot: Vec<usize>,
-    /// Two sets of slots, used by odd and even iterations: a thread may start the next
-    /// iteration while another still folds this one's slots.
-    slots: [Vec<Cell3>; 2],
-    vel: Vec<Cell3>,
-    barrier: SpinBarrier,
-    settings: &'a SolverSettings,
-}
-
-/// One thread's part: per segment its chunks `(slot, batches)`, and for thread 0 the
-/// one-at-a-time manifolds with their rows.
-struct Part<'a> {
-    chunks: Vec<Vec<(usize, &'a mut [Batch])>>,
-    serial: Option<(&'a mut [Row], &'a [Manifold])>,
+/// One work item: a chunk of a colour's batches, or a colour's one-at-a-time manifolds.
+enum Item<'a> {
+    Batches(Mutex<&'a mut [Batch]>),
+    Serial(std::ops::Range<usize>),
 }
 
 /// Runs stage 3's loop in the chunked plan, `chunk` batches a chunk ([`CHUNK`] in the
-/// solver), on `threads` threads (≥ 1; fewer when no colour has that many chunks). Returns the
-/// iterations run and the last verdict, as the one-thread loop does; `report` gets the
-/// residual of every iteration.
+/// solver), on up to `threads` threads (≥ 1; no more than the cores, nor than the widest
+/// colour has chunks). Returns the iterations run and the last verdict, as the one-thread
+/// loop does; `report` gets the residual of every iteration.
 pub(crate) fn solve_chunked(
     s: &mut Sweepable<'_>,
     chunk: usize,
@@ -102,106 +90,174 @@ pub(crate) fn solve_chunked(
         .iter()
         .map(|seg| seg.batches.len().div_ceil(chunk));
     let threads = threads.min(widest.max().unwrap_or(1)).max(1);
-    let mut parts: Vec<Part<'_>> = (0..threads)
-        .map(|_| Part {
-            chunks: (0..s.segments.len()).map(|_| Vec::new()).collect(),
-            serial: None,
-        })
-        .collect();
-    // Slots in (colour, chunk) order, each colour's one-at-a-time slot after its chunks.
-    let mut serial_slot = Vec::with_capacity(s.segments.len());
-    let mut slot = 0;
+    // Items colour by colour: the chunks, then the one-at-a-time manifolds if any.
+    let mut items = Vec::new();
+    let mut counts = Vec::with_capacity(s.segments.len());
     let mut rest: &mut [Batch] = s.batches;
-    for (c, seg) in s.segments.iter().enumerate() {
+    for seg in s.segments {
         let (colour, tail) = std::mem::take(&mut rest).split_at_mut(seg.batches.len());
         rest = tail;
-        let n_chunks = colour.len().div_ceil(chunk);
-        for (j, batches) in colour.chunks_mut(chunk).enumerate() {
-            parts[owner(j, n_chunks, threads)].chunks[c].push((slot, batches));
-            slot += 1;
+        let before = items.len();
+        items.extend(
+            colour
+                .chunks_mut(chunk)
+                .map(|b| Item::Batches(Mutex::new(b))),
+        );
+        if !seg.manifolds.is_empty() {
+            items.push(Item::Serial(seg.manifolds.clone()));
         }
-        serial_slot.push(slot);
-        slot += 1;
+        counts.push(items.len() - before);
     }
-    parts[0].serial = Some((&mut *s.rows, s.serial));
-    let common = Common {
-        segments: s.segments,
-        serial_slot,
-        slots: [
-            (0..slot).map(|_| Cell3::default()).collect(),
-            (0..slot).map(|_| Cell3::default()).collect(),
-        ],
-        vel: s
-            .vel
-            .iter()
-            .map(|v| Cell3::new([v.vx, v.vy, v.w]))
-            .collect(),
-        barrier: SpinBarrier::new(threads),
-        settings,
-    };
+    if threads == 1 {
+        return solve_one_thread(&mut items, s.serial, s.rows, s.vel, settings, report);
+    }
+    let starts = phase_starts(counts);
+    let slots: [Vec<Cell3>; 2] =
+        [0, 1].map(|_| (0..items.len()).map(|_| Cell3::default()).collect());
+    let vel: Vec<Cell3> = s
+        .vel
+        .iter()
+        .map(|v| Cell3::new([v.vx, v.vy, v.w]))
+        .collect();
+    let rows = Mutex::new(&mut *s.rows);
+    let serial = s.serial;
+    let sweeps = Mutex::new(Vec::new());
     let contact = settings.norm == ResidualNorm::Contact;
-    let run = |part: Part<'_>, report: Option<&mut SolveReport>| {
-        if contact {
-            worker::<true>(&common, part, report)
+    let process = |item: usize, parity: usize| {
+        let sweep = if contact {
+            sweep_item::<true>(&items[item], serial, &rows, &vel)
         } else {
-            worker::<false>(&common, part, report)
-        }
+            sweep_item::<false>(&items[item], serial, &rows, &vel)
+        };
+        publish(&slots[parity][item], &sweep);
     };
-    let mut parts = parts.into_iter();
-    let first = parts.next().expect("at least one thread");
-    let outcome = std::thread::scope(|scope| {
-        for part in parts {
-            scope.spawn(|| run(part, None));
+    let judge_iteration = |it: u32, parity: usize| {
+        let mut sweep = Sweep::default();
+        for slot in &slots[parity] {
+            sweep.add(&read(slot));
         }
-        run(first, Some(report))
-    });
-    for (v, shared) in s.vel.iter_mut().zip(&common.vel) {
+        let mut sweeps = sweeps
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        sweeps.push(sweep);
+        judge(settings, it + 1, &sweep, None) != Verdict::Continue
+    };
+    run_phased(
+        threads,
+        settings.max_iterations,
+        &starts,
+        &process,
+        &judge_iteration,
+    );
+    for (v, shared) in s.vel.iter_mut().zip(&vel) {
         let [vx, vy, w] = shared.load();
         *v = Vel { vx, vy, w };
     }
-    outcome
+    // The iterations' residuals into the report, and the verdict, as the judge saw them.
+    let mut last = (0, Verdict::Continue);
+    for (k, sweep) in sweeps
+        .into_inner()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+        .iter()
+        .enumerate()
+    {
+        last = (
+            k as u32 + 1,
+            judge(settings, k as u32 + 1, sweep, Some(report)),
+        );
+    }
+    last
 }
 
-/// One thread's loop: per iteration, per colour its chunks (and thread 0 the colour's
-/// one-at-a-time manifolds), a barrier, then the fold of all slots and the verdict.
-fn worker<const CONTACT: bool>(
-    common: &Common<'_>,
-    mut part: Part<'_>,
-    mut report: Option<&mut SolveReport>,
+/// The chunked plan on the calling thread: the same items in the same order, each item's
+/// measures folded in item order (so the same bits as on any number of threads), without the
+/// shared cells and the queue.
+fn solve_one_thread(
+    items: &mut [Item<'_>],
+    serial: &[Manifold],
+    rows: &mut [Row],
+    vel: &mut [Vel],
+    settings: &SolverSettings,
+    report: &mut SolveReport,
 ) -> (u32, Verdict) {
-    let mut vel = Shared(&common.vel);
-    let mut epoch = 0;
+    let contact = settings.norm == ResidualNorm::Contact;
     let mut it = 0;
-    while it < common.settings.max_iterations {
-        let slots = &common.slots[it as usize % 2];
-        for (c, seg) in common.segments.iter().enumerate() {
-            for (slot, chunk) in &mut part.chunks[c] {
-                let mut lanes = LaneSweep::default();
-                for batch in chunk.iter_mut() {
-                    sweep_batch::<CONTACT, _>(batch, &mut vel, &mut lanes);
-                }
-                let mut sweep = Sweep::default();
-                sweep.add_lanes(&lanes);
-                publish(&slots[*slot], &sweep);
-            }
-            if let Some((rows, serial)) = &mut part.serial {
-                let mut sweep = Sweep::default();
-                for m in &serial[seg.manifolds.clone()] {
-                    sweep_manifold::<CONTACT, _>(m, rows, &mut vel, &mut sweep);
-                }
-                publish(&slots[common.serial_slot[c]], &sweep);
-            }
-            common.barrier.wait(&mut epoch);
-        }
+    while it < settings.max_iterations {
         let mut sweep = Sweep::default();
-        for slot in slots {
-            sweep.add(&read(slot));
+        for item in items.iter_mut() {
+            let one = match item {
+                Item::Batches(batches) => {
+                    let batches = batches
+                        .get_mut()
+                        .unwrap_or_else(std::sync::PoisonError::into_inner);
+                    if contact {
+                        sweep_batches::<true>(batches, vel)
+                    } else {
+                        sweep_batches::<false>(batches, vel)
+                    }
+                }
+                Item::Serial(range) => {
+                    let mut one = Sweep::default();
+                    for m in &serial[range.clone()] {
+                        if contact {
+                            sweep_manifold::<true, _>(m, rows, vel, &mut one);
+                        } else {
+                            sweep_manifold::<false, _>(m, rows, vel, &mut one);
+                        }
+                    }
+                    one
+                }
+            };
+            sweep.add(&one);
         }
         it += 1;
-        match judge(common.settings, it, &sweep, report.as_deref_mut()) {
+        match judge(settings, it, &sweep, Some(report)) {
             Verdict::Continue => {}
             end => return (it, end),
         }
     }
     (it, Verdict::Continue)
+}
+
+/// Sweeps a chunk of batches and returns its measures (lanes folded in lane order).
+#[inline]
+fn sweep_batches<const CONTACT: bool>(
+    batches: &mut [Batch],
+    vel: &mut (impl Velocities + ?Sized),
+) -> Sweep {
+    let mut lanes = LaneSweep::default();
+    for batch in batches.iter_mut() {
+        sweep_batch::<CONTACT, _>(batch, vel, &mut lanes);
+    }
+    let mut sweep = Sweep::default();
+    sweep.add_lanes(&lanes);
+    sweep
+}
+
+/// Sweeps one item and returns its measures.
+fn sweep_item<const CONTACT: bool>(
+    item: &Item<'_>,
+    serial: &[Manifold],
+    rows: &Mutex<&mut [Row]>,
+    vel: &[Cell3],
+) -> Sweep {
+    let mut vel = Shared(vel);
+    let mut sweep = Sweep::default();
+    match item {
+        Item::Batches(batches) => {
+            let mut batches = batches
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
+            sweep = sweep_batches::<CONTACT>(&mut batches, &mut vel);
+        }
+        Item::Serial(range) => {
+            let mut rows = rows
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
+            for m in &serial[range.clone()] {
+                sweep_manifold::<CONTACT, _>(m, &mut rows, &mut vel, &mut sweep);
+            }
+        }
+    }
+    sweep
 }
