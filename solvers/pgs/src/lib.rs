@@ -8,6 +8,14 @@
 //! Solver stages, in order: **prepare** (copy the problem into solver-friendly rows,
 //! buffers reused) → **warm start** (apply the start impulses) → **solve** (iterate until
 //! the stop rule holds) → **store impulses** (write them back, natural-map residual).
+//!
+//! **Threads.** An island of [`PgsSettings::parallel_min_points`] points or more (default
+//! 2048) is swept colour by colour in fixed chunks ([`PgsSettings::threads`], `pgs:threads=N`);
+//! the position pass does the same with its points coloured
+//! ([`PgsPositionSettings::threads`]). Threads claim the chunks of a colour from one queue and
+//! a colour starts once the previous one is done; each chunk's measures are folded in chunk
+//! order, so the result is bit-identical for any thread count. Smaller islands run on the
+//! calling thread.
 #![warn(missing_docs)]
 
 mod position;
