@@ -789,7 +789,7 @@ pub(crate) fn sweep_batch<const CONTACT: bool, V: Velocities + ?Sized>(
 }
 
 /// The Z-order (Morton) key of a 16-bit cell `(x, y)`: their bits interleaved.
-fn z_order(x: u32, y: u32) -> u64 {
+pub(crate) fn z_order(x: u32, y: u32) -> u64 {
     let spread = |v: u32| {
         let mut v = u64::from(v & 0xffff);
         v = (v | (v << 8)) & 0x00ff_00ff;
