@@ -24,6 +24,7 @@ mod registry;
 mod sync;
 mod velocity;
 mod velocity_chunked;
+mod z_order;
 
 pub use position::{PgsPositionSettings, PgsPositionSolver};
 pub use registry::{MAX_THREADS, register};

@@ -14,7 +14,7 @@ use crate::position::{PassMeasures, PosRow, Poses, correct_point, immovable};
 use std::sync::Mutex;
 
 use crate::sync::{Cell3, phase_starts, run_phased};
-use crate::velocity::z_order;
+use crate::z_order::ZOrder;
 
 /// Points per chunk: the unit a thread takes.
 pub(crate) const CHUNK: usize = 64;
@@ -104,22 +104,11 @@ impl Plan {
         // Each colour (but the overflow, whose order matters) in Z-order of its points, so
         // that a chunk holds neighbours: the points of a colour are independent, their order
         // changes nothing.
-        let (mut lo, mut hi) = (
-            Vector::repeat(f64::INFINITY),
-            Vector::repeat(-f64::INFINITY),
-        );
-        for p in &problem.points {
-            lo = lo.inf(&p.point);
-            hi = hi.sup(&p.point);
-        }
-        let scale = (hi - lo).map(|e| if e > 0.0 { 65535.0 / e } else { 0.0 });
+        let z = ZOrder::of(&problem.points);
         for (range, overflow) in &self.colours {
             if !overflow {
-                self.order[range.clone()].sort_by_cached_key(|&k| {
-                    let p = problem.points[k as usize].point - lo;
-                    let q = |x: f64, s: f64| (x * s).clamp(0.0, 65535.0) as u32;
-                    z_order(q(p.x, scale.x), q(p.y, scale.y))
-                });
+                self.order[range.clone()]
+                    .sort_by_cached_key(|&k| z.key(&problem.points[k as usize].point));
             }
         }
     }

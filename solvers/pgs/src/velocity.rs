@@ -351,21 +351,8 @@ impl PgsSolver {
     /// threads share few bodies. Manifolds of a colour are independent: their order changes
     /// no impulse, only the grouping of `Σ Δλ²`.
     fn order_colours_in_space(&mut self, problem: &ContactProblem, counts: &[u32; 65]) {
-        let (mut lo, mut hi) = (
-            Vector::repeat(Real::INFINITY),
-            Vector::repeat(-Real::INFINITY),
-        );
-        for p in &problem.points {
-            lo = lo.inf(&p.point);
-            hi = hi.sup(&p.point);
-        }
-        let scale = (hi - lo).map(|e| if e > 0.0 { 65535.0 / e } else { 0.0 });
-        let key = |m: &Manifold| {
-            let p = problem.points[m.start as usize].point - lo;
-            // Non-finite points (rejected later by the sweep's checks) sort anywhere.
-            let q = |x: Real, k: Real| (x * k).clamp(0.0, 65535.0) as u32;
-            z_order(q(p.x, scale.x), q(p.y, scale.y))
-        };
+        let z = crate::z_order::ZOrder::of(&problem.points);
+        let key = |m: &Manifold| z.key(&problem.points[m.start as usize].point);
         let mut start = 0;
         for &count in &counts[..64] {
             let range = start..start + count as usize;
@@ -788,18 +775,6 @@ pub(crate) fn sweep_batch<const CONTACT: bool, V: Velocities + ?Sized>(
     }
 }
 
-/// The Z-order (Morton) key of a 16-bit cell `(x, y)`: their bits interleaved.
-pub(crate) fn z_order(x: u32, y: u32) -> u64 {
-    let spread = |v: u32| {
-        let mut v = u64::from(v & 0xffff);
-        v = (v | (v << 8)) & 0x00ff_00ff;
-        v = (v | (v << 4)) & 0x0f0f_0f0f;
-        v = (v | (v << 2)) & 0x3333_3333;
-        (v | (v << 1)) & 0x5555_5555
-    };
-    spread(x) | (spread(y) << 1)
-}
-
 /// Whether a body with these inverse masses can move.
 #[inline(always)]
 fn movable(inv_mass: Real, inv_inertia: Real) -> bool {
@@ -1032,15 +1007,6 @@ mod tests {
             .max_by_key(|p| p.len())
             .unwrap()
             .clone()
-    }
-
-    #[test]
-    fn z_order_interleaves_x_and_y_bits() {
-        assert_eq!(z_order(1, 0), 1);
-        assert_eq!(z_order(0, 1), 2);
-        assert_eq!(z_order(3, 3), 15);
-        assert_eq!(z_order(0xffff, 0), 0x5555_5555);
-        assert_eq!(z_order(0xffff, 0xffff), 0xffff_ffff);
     }
 
     #[test]
