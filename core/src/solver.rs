@@ -171,6 +171,13 @@ pub trait VelocitySolver: Send {
         velocities: &mut [Velocity],
         report: &mut SolveReport,
     ) -> Result<(), CoreError>;
+
+    /// A solver with the same settings for another thread, which must solve every problem
+    /// to the same bits as this one (default `None`: islands are solved one after another).
+    /// The world asks for forks when [`crate::WorldSettings::island_threads`] > 1.
+    fn fork(&self) -> Option<Box<dyn VelocitySolver>> {
+        None
+    }
 }
 
 impl<S: VelocitySolver + ?Sized> VelocitySolver for Box<S> {
@@ -186,6 +193,9 @@ impl<S: VelocitySolver + ?Sized> VelocitySolver for Box<S> {
         report: &mut SolveReport,
     ) -> Result<(), CoreError> {
         (**self).solve(problem, settings, impulses, velocities, report)
+    }
+    fn fork(&self) -> Option<Box<dyn VelocitySolver>> {
+        (**self).fork()
     }
 }
 

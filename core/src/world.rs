@@ -36,6 +36,13 @@ pub struct WorldSettings {
     pub max_rotation: Real,
     /// What to do when a warm start fails (default: fall back to zeros and count).
     pub guard: GuardPolicy,
+    /// Threads that solve a step's islands side by side, each with its own copy of the
+    /// velocity solver ([`VelocitySolver::fork`]; a solver that cannot fork solves them one
+    /// after another) (default 1; at least 1). Providers are always called on the stepping
+    /// thread in island order, every island's warm start before the first solve and every
+    /// observation after the last, whatever this is, so results are bit-identical for any
+    /// count.
+    pub island_threads: usize,
 }
 
 impl Default for WorldSettings {
@@ -50,6 +57,7 @@ impl Default for WorldSettings {
             max_translation: 2.0,
             max_rotation: 0.5 * std::f64::consts::PI,
             guard: GuardPolicy::FallbackToZero,
+            island_threads: 1,
         }
     }
 }
@@ -93,6 +101,9 @@ impl WorldSettings {
         }
         if self.max_rotation.is_nan() || self.max_rotation <= 0.0 {
             return err("max_rotation", self.max_rotation, "must be > 0");
+        }
+        if self.island_threads == 0 {
+            return err("island_threads", 0.0, "must be >= 1");
         }
         self.solver.validate()?;
         self.position.validate()
@@ -147,19 +158,33 @@ struct Scratch {
     problems: Vec<ContactProblem>,
     /// Per island: index of each point in the narrow phase's contact list.
     point_source: Vec<Vec<u32>>,
-    carried: Vec<Option<Impulse>>,
+    /// Per island: what its warm start, solve and observation work on.
+    islands: Vec<IslandWork>,
     /// Per narrow-phase contact: the impulse carried from the previous step, if its id matched.
     matched: Vec<Option<Impulse>>,
-    warm: Vec<Impulse>,
-    impulses: Vec<Impulse>,
-    velocities: Vec<Velocity>,
     poses: Vec<Pose>,
-    report: SolveReport,
     local_index: Vec<u32>,
     manifold_bodies: Vec<(u32, u32)>,
     dynamic: Vec<bool>,
     /// Final impulse of every narrow-phase contact this step.
     solved: Vec<Impulse>,
+}
+
+/// One island's buffers for a step (reused between steps).
+#[derive(Debug, Default, Clone)]
+struct IslandWork {
+    /// The impulses carried by contact id, one per point.
+    carried: Vec<Option<Impulse>>,
+    /// The checked warm start (zeros after a fallback).
+    warm: Vec<Impulse>,
+    /// Whether the provider's start was replaced by zeros.
+    fell_back: bool,
+    /// The solved impulses and body velocities.
+    impulses: Vec<Impulse>,
+    velocities: Vec<Velocity>,
+    report: SolveReport,
+    /// The solve's error, if it failed.
+    error: Option<CoreError>,
 }
 
 /// A 2D rigid-body world stepped Box2D-style with pluggable warm start and solvers.
@@ -412,8 +437,15 @@ impl World {
                 report.islands = s.problems.len();
             }
             Stage::SolveIslands => {
+                s.islands.resize_with(s.problems.len(), IslandWork::default);
                 for k in 0..s.problems.len() {
-                    self.solve_island(k, s, plugins, report)?;
+                    self.warm_start_island(k, s, plugins, report)?;
+                }
+                let t0 = Instant::now();
+                self.solve_islands(s, plugins.solver);
+                report.solve_seconds += t0.elapsed().as_secs_f64();
+                for k in 0..s.problems.len() {
+                    self.observe_island(k, s, plugins, report)?;
                 }
                 report.finish_islands();
             }
@@ -447,10 +479,10 @@ impl World {
         s.solved.resize(self.narrow.contacts.len(), Impulse::ZERO);
     }
 
-    /// One island: its carried impulses, the checked warm start, the velocity solve from it,
-    /// the provider's observation, and the solved velocities written back.
-    fn solve_island(
-        &mut self,
+    /// Island `k`'s carried impulses and its checked warm start (zeros and a count on failure,
+    /// or the error, as the guard policy says).
+    fn warm_start_island(
+        &self,
         k: usize,
         s: &mut Scratch,
         plugins: &mut Plugins<'_>,
@@ -458,28 +490,28 @@ impl World {
     ) -> Result<(), CoreError> {
         let settings = self.settings;
         let n = s.problems[k].points.len();
-        s.carried.clear();
-        s.carried
+        let work = &mut s.islands[k];
+        work.carried.clear();
+        work.carried
             .extend(s.point_source[k].iter().map(|&c| s.matched[c as usize]));
-        s.warm.clear();
-        s.warm.resize(n, Impulse::ZERO);
-        let ctx = WarmStartContext::new(&s.problems[k], &s.carried, self.step_index, settings.dt)
-            .with_gravity(settings.gravity)
-            .with_world(self, k, s.problems.len());
-
-        // Warm start, checked before use.
+        work.warm.clear();
+        work.warm.resize(n, Impulse::ZERO);
+        let ctx =
+            WarmStartContext::new(&s.problems[k], &work.carried, self.step_index, settings.dt)
+                .with_gravity(settings.gravity)
+                .with_world(self, k, s.problems.len());
         let t0 = Instant::now();
         let provided = plugins
             .warm_start
-            .warm_start(&ctx, &mut s.warm)
-            .and_then(|_| check_output(&s.warm, n));
+            .warm_start(&ctx, &mut work.warm)
+            .and_then(|_| check_output(&work.warm, n));
         report.warm_start_seconds += t0.elapsed().as_secs_f64();
-        let fell_back = provided.is_err();
+        work.fell_back = provided.is_err();
         if let Err(e) = provided {
             match settings.guard {
                 GuardPolicy::FallbackToZero => {
                     report.fallbacks += 1;
-                    s.warm.fill(Impulse::ZERO);
+                    work.warm.fill(Impulse::ZERO);
                 }
                 GuardPolicy::Error => {
                     return Err(CoreError::WarmStart {
@@ -491,41 +523,104 @@ impl World {
                 }
             }
         }
+        Ok(())
+    }
 
-        // Velocity solve from the warm start.
-        s.impulses.clear();
-        s.impulses.extend_from_slice(&s.warm);
-        s.velocities.clear();
-        s.velocities
-            .resize(s.problems[k].bodies.len(), Velocity::default());
-        let t0 = Instant::now();
-        let solved = plugins.solver.solve(
+    /// Every island's velocity solve from its warm start: side by side on up to
+    /// `island_threads` threads when the solver can fork, else one after another. An
+    /// island's result does not depend on which thread solved it.
+    fn solve_islands(&self, s: &mut Scratch, solver: &mut dyn VelocitySolver) {
+        let settings = &self.settings.solver;
+        let solve =
+            |solver: &mut dyn VelocitySolver, problem: &ContactProblem, w: &mut IslandWork| {
+                w.impulses.clear();
+                w.impulses.extend_from_slice(&w.warm);
+                w.velocities.clear();
+                w.velocities
+                    .resize(problem.bodies.len(), Velocity::default());
+                w.error = solver
+                    .solve(
+                        problem,
+                        settings,
+                        &mut w.impulses,
+                        &mut w.velocities,
+                        &mut w.report,
+                    )
+                    .err();
+            };
+        let threads = self.settings.island_threads.min(s.problems.len());
+        let forks: Vec<_> = (1..threads).map_while(|_| solver.fork()).collect();
+        if forks.is_empty() {
+            for (problem, w) in s.problems.iter().zip(&mut s.islands) {
+                solve(solver, problem, w);
+            }
+            return;
+        }
+        // Islands claimed one at a time from a counter, each in a slot of its own.
+        let slots: Vec<_> = s
+            .problems
+            .iter()
+            .zip(&mut s.islands)
+            .map(std::sync::Mutex::new)
+            .collect();
+        let next = std::sync::atomic::AtomicUsize::new(0);
+        let work = |solver: &mut dyn VelocitySolver| {
+            loop {
+                let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let Some(slot) = slots.get(k) else { return };
+                let mut slot = slot
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner);
+                let (problem, w) = &mut *slot;
+                solve(solver, problem, w);
+            }
+        };
+        std::thread::scope(|scope| {
+            for mut fork in forks {
+                scope.spawn(move || work(fork.as_mut()));
+            }
+            work(solver);
+        });
+    }
+
+    /// Island `k` after its solve: the solver's error if it failed, else the provider's
+    /// observation, the report, and the solved impulses and velocities written back.
+    fn observe_island(
+        &mut self,
+        k: usize,
+        s: &mut Scratch,
+        plugins: &mut Plugins<'_>,
+        report: &mut StepReport,
+    ) -> Result<(), CoreError> {
+        let work = &mut s.islands[k];
+        if let Some(e) = work.error.take() {
+            return Err(e);
+        }
+        let ctx = WarmStartContext::new(
             &s.problems[k],
-            &settings.solver,
-            &mut s.impulses,
-            &mut s.velocities,
-            &mut s.report,
-        );
-        report.solve_seconds += t0.elapsed().as_secs_f64();
-        solved?;
-
+            &work.carried,
+            self.step_index,
+            self.settings.dt,
+        )
+        .with_gravity(self.settings.gravity)
+        .with_world(self, k, s.problems.len());
         // What a provider does after the solve is part of its cost.
         let t0 = Instant::now();
         plugins.warm_start.observe(
             &ctx,
             &Observation {
-                start: &s.warm,
-                solved: &s.impulses,
-                fell_back,
-                report: &s.report,
+                start: &work.warm,
+                solved: &work.impulses,
+                fell_back: work.fell_back,
+                report: &work.report,
             },
         );
         report.warm_start_seconds += t0.elapsed().as_secs_f64();
-        report.add_island(&s.report, &s.warm, &s.impulses);
-        for (p, imp) in s.point_source[k].iter().zip(&s.impulses) {
+        report.add_island(&work.report, &work.warm, &work.impulses);
+        for (p, imp) in s.point_source[k].iter().zip(&work.impulses) {
             s.solved[*p as usize] = *imp;
         }
-        for (pb, v) in s.problems[k].bodies.iter().zip(&s.velocities) {
+        for (pb, v) in s.problems[k].bodies.iter().zip(&work.velocities) {
             let body = &mut self.bodies[pb.world_index as usize];
             if body.kind == BodyKind::Dynamic {
                 body.linear_velocity = v.linear;
@@ -621,7 +716,9 @@ pub enum Stage {
     Collide,
     /// Islands (union-find over touching dynamic bodies) and one [`ContactProblem`] each.
     Islands,
-    /// Per island: warm start (checked, zeros on failure) → velocity solve → observe.
+    /// Every island's warm start (checked, zeros on failure), in island order → every
+    /// island's velocity solve (side by side with [`WorldSettings::island_threads`]) → every
+    /// island's observation, in island order.
     SolveIslands,
     /// Positions from velocities, clamped per step.
     IntegratePositions,

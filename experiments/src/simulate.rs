@@ -24,8 +24,9 @@ pub struct SimulateConfig {
     pub solver: String,
     /// World settings (default: the thesis's).
     pub world: WorldSettings,
-    /// Threads that share the velocity and position solve of one large island (default 1;
-    /// `pgs` only: added to the solver spec as `threads=`). Results are bit-identical for any
+    /// Threads (default 1; `pgs` only): they solve a step's islands side by side
+    /// ([`WorldSettings::island_threads`]) and share the velocity and position solve of one
+    /// large island (the solver spec gains `threads=`). Results are bit-identical for any
     /// count.
     pub threads: usize,
 }
@@ -119,7 +120,10 @@ pub fn run_scene(
     let mut solver = registry.solver_from_spec(&threaded_spec(&config.solver, config.threads)?)?;
     let mut position = PgsPositionSolver::with_threads(config.threads);
     let scene = scene::by_name(&config.scene, config.seed, config.bodies)?;
-    let mut world = scene.build(config.world)?;
+    let mut world = scene.build(WorldSettings {
+        island_threads: config.threads.max(1),
+        ..config.world
+    })?;
     let late_from = config.late_from();
     let mut t = Totals {
         steps: config.steps,

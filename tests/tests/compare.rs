@@ -59,17 +59,21 @@ fn scratch_dir(name: &str) -> PathBuf {
 
 #[test]
 fn compare_outputs_are_the_same_for_one_two_and_four_solver_threads() {
-    // Every island through the chunked sweep (`parallel_from=0`) on 1, 2 and 4 threads: the
-    // same step records and curves, and the same as the plain sweep (∞-norm stop rule).
-    let config = |solver: &str| Config {
-        warm_starts: split_spec_list("none,builtin,krylov").unwrap(),
+    // Islands side by side and every island through the chunked sweep (`parallel_from=0`)
+    // on 1, 2 and 4 threads, for every default provider: the same step records and curves,
+    // and the same as the plain sweep one island after another (∞-norm stop rule).
+    let config = |solver: &str, island_threads: usize| Config {
         solvers: split_spec_list(solver).unwrap(),
+        world: deepcontact_core::WorldSettings {
+            island_threads,
+            ..deepcontact_core::WorldSettings::default()
+        },
         ..small(2)
     };
-    let plain = compare::run_experiment(&config("pgs")).unwrap();
+    let plain = compare::run_experiment(&config("pgs", 1)).unwrap();
     for threads in [1, 2, 4] {
         let spec = format!("pgs:parallel_from=0,threads={threads}");
-        let mut chunked = compare::run_experiment(&config(&spec)).unwrap();
+        let mut chunked = compare::run_experiment(&config(&spec, threads)).unwrap();
         assert_eq!(chunked.solvers, [spec]);
         // The solver's name is the only difference.
         chunked.solvers.clone_from(&plain.solvers);

@@ -4,7 +4,7 @@
 //! already covered by `compare_writes_every_file_and_ignores_the_thread_count` in
 //! `tests/tests/compare.rs`, so it is not repeated here.
 
-use deepcontact_core::scene;
+use deepcontact_core::{WorldSettings, scene};
 use deepcontact_pgs::{PgsPositionSettings, PgsPositionSolver, PgsSettings, PgsSolver};
 use deepcontact_tests::{build, run_with};
 
@@ -45,7 +45,22 @@ fn pile_hash() -> (u64, usize) {
 
 /// [`pile_hash`] with the given solvers.
 fn pile_hash_with(solver: PgsSolver, position: PgsPositionSolver) -> (u64, usize) {
+    pile_hash_on(solver, position, 1)
+}
+
+/// [`pile_hash_with`] with islands solved on `island_threads` threads.
+fn pile_hash_on(
+    solver: PgsSolver,
+    position: PgsPositionSolver,
+    island_threads: usize,
+) -> (u64, usize) {
     let mut world = build(&scene::pile(12345, 100).unwrap());
+    world
+        .set_settings(WorldSettings {
+            island_threads,
+            ..WorldSettings::default()
+        })
+        .unwrap();
     let mut warm = deepcontact_experiments::full_registry()
         .build_provider("builtin")
         .unwrap();
@@ -106,21 +121,21 @@ fn chunked(threads: usize, position: bool) -> (PgsSolver, PgsPositionSolver) {
 
 #[test]
 fn pile_golden_hash_is_the_same_on_one_two_and_four_threads() {
-    // The chunked velocity sweep gives the golden bits on any thread count (the ∞-norm stop
-    // rule sees the same maxima).
+    // Islands side by side, and the chunked velocity sweep, give the golden bits on any
+    // thread count (the ∞-norm stop rule sees the same maxima).
     for threads in [1, 2, 4] {
         let (solver, position) = chunked(threads, false);
-        let (hash, _) = pile_hash_with(solver, position);
+        let (hash, _) = pile_hash_on(solver, position, threads);
         assert_eq!(
             hash, PILE_12345_250_BUILTIN_PGS,
-            "chunked velocity sweep on {threads} threads: {hash:#018x}"
+            "islands and chunked velocity sweep on {threads} threads: {hash:#018x}"
         );
     }
     // The coloured position pass visits the points in another order (another, equally valid
     // result), the same for every thread count.
     let hashes = [1, 2, 4].map(|threads| {
         let (solver, position) = chunked(threads, true);
-        pile_hash_with(solver, position).0
+        pile_hash_on(solver, position, threads).0
     });
     assert_eq!(
         hashes[0], hashes[1],

@@ -916,6 +916,15 @@ impl VelocitySolver for PgsSolver {
         "pgs"
     }
 
+    /// The same settings on one thread (a fork solves one island beside others; the result
+    /// does not depend on the thread count).
+    fn fork(&self) -> Option<Box<dyn VelocitySolver>> {
+        Some(Box::new(PgsSolver::with_settings(PgsSettings {
+            threads: 1,
+            ..self.settings
+        })))
+    }
+
     fn solve(
         &mut self,
         problem: &ContactProblem,
