@@ -84,8 +84,9 @@ pub struct PythonProvider {
     target: Py<PyAny>,
     style: Style,
     pending: std::sync::Arc<Pending>,
-    /// The island of the last `warm_start` call, handed again to `observe`.
-    last_island: Option<Py<IslandProblem>>,
+    /// Per island of the step, the island handed to `warm_start`, handed again to
+    /// `observe` (a step asks every island's warm start before it observes any).
+    islands: Vec<Option<Py<IslandProblem>>>,
 }
 
 impl PythonProvider {
@@ -116,7 +117,7 @@ impl PythonProvider {
             target,
             style,
             pending,
-            last_island: None,
+            islands: Vec::new(),
         })
     }
 
@@ -134,7 +135,12 @@ impl PythonProvider {
             Style::Callable => target.call1((island.clone(),)),
             Style::Object { .. } => target.call_method1("warm_start", (island.clone(),)),
         };
-        self.last_island = Some(island.unbind());
+        if self.islands.len() < ctx.island_count {
+            self.islands.resize_with(ctx.island_count, || None);
+        }
+        if let Some(slot) = self.islands.get_mut(ctx.island) {
+            *slot = Some(island.unbind());
+        }
         let returned = returned.map_err(|e| self.failed(py, e))?;
         read_impulses(&returned, out)
     }
@@ -211,8 +217,8 @@ impl WarmStart for PythonProvider {
         Python::attach(|py| self.call(py, ctx, out))
     }
 
-    fn observe(&mut self, _ctx: &WarmStartContext<'_>, seen: &Observation<'_>) {
-        let island = self.last_island.take();
+    fn observe(&mut self, ctx: &WarmStartContext<'_>, seen: &Observation<'_>) {
+        let island = self.islands.get_mut(ctx.island).and_then(Option::take);
         if !matches!(self.style, Style::Object { observe: true, .. }) || self.pending.is_set() {
             return;
         }
