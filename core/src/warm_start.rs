@@ -192,6 +192,12 @@ pub enum GuardPolicy {
 /// arrives zeroed, so doing nothing is a cold start) and may learn from the
 /// solved impulses in [`WarmStart::observe`].
 ///
+/// Call order within a [`crate::World`] step: `warm_start` for every island in island order
+/// (`ctx.island` = 0, 1, …), then the solves (side by side with
+/// [`crate::WorldSettings::island_threads`]), then `observe` for every island in island order;
+/// always on the stepping thread, whatever the thread count. Keep per-island state by
+/// `ctx.island`, not "the last call".
+///
 /// ```
 /// use deepcontact_core::{Impulse, WarmStart, WarmStartContext, WarmStartError};
 ///
