@@ -74,9 +74,8 @@ pub struct SolverArgs {
     pub circle_contact: CircleContactArg,
     /// `thesis`: the original code's choices (its stop rules, raw warm starts, its `copy`
     /// oracles, its initial worlds where the command has a scene left at `pile`), overriding
-    /// `--norm`,
-    /// `--position-stop`, `--tolerance` and `--max-iterations`; see
-    /// `deepcontact_experiments::preset`.
+    /// `--norm`, `--position-stop`, `--circle-contact` (remeasured), `--tolerance` and
+    /// `--max-iterations`; see `deepcontact_experiments::preset`.
     #[arg(long, default_value = "default")]
     pub preset: String,
 }
