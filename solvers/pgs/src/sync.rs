@@ -72,20 +72,20 @@ pub(crate) fn run_phased(
         return 0;
     }
     let (next, done, judged) = (
-        AtomicUsize::new(0),
-        AtomicUsize::new(0),
-        AtomicUsize::new(0),
+        Padded(AtomicUsize::new(0)),
+        Padded(AtomicUsize::new(0)),
+        Padded(AtomicUsize::new(0)),
     );
     let stopped = AtomicBool::new(false);
     let work = || {
         loop {
-            let w = next.fetch_add(1, Mem::Relaxed);
+            let w = next.0.fetch_add(1, Mem::Relaxed);
             let (it, item) = (w / total, w % total);
             if it >= max_iterations as usize {
                 return;
             }
             if it > 0 {
-                wait_until(|| judged.load(Mem::Acquire) >= it);
+                wait_until(|| judged.0.load(Mem::Acquire) >= it);
                 if stopped.load(Mem::Relaxed) {
                     return;
                 }
@@ -93,13 +93,13 @@ pub(crate) fn run_phased(
             // Every item of the earlier phases of this iteration done.
             let phase = phase_starts.partition_point(|&s| s <= item) - 1;
             let need = it * total + phase_starts[phase];
-            wait_until(|| done.load(Mem::Acquire) >= need);
+            wait_until(|| done.0.load(Mem::Acquire) >= need);
             process(item, it % 2);
-            if done.fetch_add(1, Mem::AcqRel) + 1 == (it + 1) * total {
+            if done.0.fetch_add(1, Mem::AcqRel) + 1 == (it + 1) * total {
                 if judge(it as u32, it % 2) {
                     stopped.store(true, Mem::Relaxed);
                 }
-                judged.store(it + 1, Mem::Release);
+                judged.0.store(it + 1, Mem::Release);
             }
         }
     };
@@ -109,8 +109,13 @@ pub(crate) fn run_phased(
         }
         work();
     });
-    judged.load(Mem::Acquire) as u32
+    judged.0.load(Mem::Acquire) as u32
 }
+
+/// A counter on a cache line of its own (two lines: adjacent-line prefetch), so that
+/// claiming, completing and judging do not contend for one line.
+#[repr(align(128))]
+struct Padded(AtomicUsize);
 
 /// Threads to run for a request of `requested`: no more than the cores this process may
 /// use. The result never depends on it.
