@@ -52,14 +52,14 @@ fn wait_until(ready: impl Fn() -> bool) {
 /// Runs iterations of phased work on `threads` threads (≥ 1; the caller is one of them).
 ///
 /// An iteration is `phase_starts.last()` items in phases (`phase_starts`: the first item of
-/// each phase, ascending from 0, then the item count). Threads claim items one at a time, in
-/// order, from one counter; an item starts once every item of the earlier phases of its
-/// iteration is done, and the first items of an iteration once the previous one is judged.
-/// The thread that completes an iteration's last item calls `judge(iteration, parity)`
-/// (0-based; `parity` = iteration mod 2, which `process(item, parity)` also gets); `true`
-/// stops the run. A thread that loses its core holds up at most the one item it claimed;
-/// the others go on with the rest. What an item computes must not depend on which thread
-/// runs it. Returns the iterations run.
+/// each phase, ascending from 0, then the item count). Every thread walks the phases in
+/// order; each phase is split into one contiguous home segment per thread, and a thread
+/// claims the items of its own segment first, then helps with the others' (each segment has
+/// its own counter), then waits until every item of the phase is done. The thread that
+/// completes an iteration's last item calls `judge(iteration, parity)` (0-based; `parity` =
+/// iteration mod 2, which `process(item, parity)` also gets); `true` stops the run. A thread
+/// that loses its core holds up at most the one item it claimed. What an item computes must
+/// not depend on which thread runs it. Returns the iterations run.
 pub(crate) fn run_phased(
     threads: usize,
     max_iterations: u32,
@@ -71,43 +71,77 @@ pub(crate) fn run_phased(
     if total == 0 {
         return 0;
     }
-    let (next, done, judged) = (
-        Padded(AtomicUsize::new(0)),
-        Padded(AtomicUsize::new(0)),
-        Padded(AtomicUsize::new(0)),
-    );
+    let phases = phase_starts.len() - 1;
+    // Thread t's home segment of phase p: [home(p, t), home(p, t + 1)).
+    let home = |p: usize, t: usize| {
+        phase_starts[p] + (phase_starts[p + 1] - phase_starts[p]) * t / threads
+    };
+    // Per thread: where each phase's segment starts in its counter's count of one iteration,
+    // and the count of a whole iteration.
+    let offsets: Vec<Vec<usize>> = (0..threads)
+        .map(|t| {
+            let mut acc = 0;
+            let mut v: Vec<usize> = (0..phases)
+                .map(|p| {
+                    let at = acc;
+                    acc += home(p, t + 1) - home(p, t);
+                    at
+                })
+                .collect();
+            v.push(acc);
+            v
+        })
+        .collect();
+    let cursors: Vec<Padded> = (0..threads).map(|_| Padded(AtomicUsize::new(0))).collect();
+    let (done, judged) = (Padded(AtomicUsize::new(0)), Padded(AtomicUsize::new(0)));
     let stopped = AtomicBool::new(false);
-    let work = || {
-        loop {
-            let w = next.0.fetch_add(1, Mem::Relaxed);
-            let (it, item) = (w / total, w % total);
-            if it >= max_iterations as usize {
-                return;
+    // Claims one item of segment t in phase p of iteration it, if one is left.
+    let claim = |t: usize, it: usize, p: usize| -> Option<usize> {
+        let first = it * offsets[t][phases] + offsets[t][p];
+        let end = first + home(p, t + 1) - home(p, t);
+        let cursor = &cursors[t].0;
+        let mut c = cursor.load(Mem::Relaxed);
+        while c < end {
+            match cursor.compare_exchange_weak(c, c + 1, Mem::Relaxed, Mem::Relaxed) {
+                Ok(_) => return Some(home(p, t) + (c - first)),
+                Err(now) => c = now,
             }
+        }
+        None
+    };
+    let work = |me: usize| {
+        for it in 0..max_iterations as usize {
             if it > 0 {
                 wait_until(|| judged.0.load(Mem::Acquire) >= it);
                 if stopped.load(Mem::Relaxed) {
                     return;
                 }
             }
-            // Every item of the earlier phases of this iteration done.
-            let phase = phase_starts.partition_point(|&s| s <= item) - 1;
-            let need = it * total + phase_starts[phase];
-            wait_until(|| done.0.load(Mem::Acquire) >= need);
-            process(item, it % 2);
-            if done.0.fetch_add(1, Mem::AcqRel) + 1 == (it + 1) * total {
-                if judge(it as u32, it % 2) {
-                    stopped.store(true, Mem::Relaxed);
+            for p in 0..phases {
+                // Every item of the earlier phases done before this phase's first.
+                let need = it * total + phase_starts[p];
+                wait_until(|| done.0.load(Mem::Acquire) >= need);
+                for k in 0..threads {
+                    let t = (me + k) % threads;
+                    while let Some(item) = claim(t, it, p) {
+                        process(item, it % 2);
+                        if done.0.fetch_add(1, Mem::AcqRel) + 1 == (it + 1) * total {
+                            if judge(it as u32, it % 2) {
+                                stopped.store(true, Mem::Relaxed);
+                            }
+                            judged.0.store(it + 1, Mem::Release);
+                        }
+                    }
                 }
-                judged.0.store(it + 1, Mem::Release);
             }
         }
     };
     std::thread::scope(|scope| {
-        for _ in 1..threads {
-            scope.spawn(work);
+        for t in 1..threads {
+            let work = &work;
+            scope.spawn(move || work(t));
         }
-        work();
+        work(0);
     });
     judged.0.load(Mem::Acquire) as u32
 }
