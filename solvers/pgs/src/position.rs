@@ -43,6 +43,11 @@ pub struct PgsPositionSolver {
     rows: Vec<PosRow>,
     /// The coloured plan: point indices colour by colour, and each colour's range in it.
     plan: crate::position_chunked::Plan,
+    /// For the coloured plan: the problem's body of each renumbered body (Z-order of the
+    /// positions), the renumbering, and the poses in that order.
+    body_of: Vec<u32>,
+    new_index: Vec<u32>,
+    renumbered: Vec<Pose>,
 }
 
 impl PgsPositionSolver {
@@ -315,21 +320,37 @@ impl PositionSolver for PgsPositionSolver {
         }
         if problem.points.len() >= self.settings.parallel_min_points {
             self.plan.build(problem);
+            // Bodies renumbered in Z-order, so that a chunk's bodies share cache lines.
+            let z = crate::z_order::ZOrder::of(&problem.points);
+            self.body_of.clear();
+            self.body_of.extend(0..problem.bodies.len() as u32);
+            self.body_of
+                .sort_by_cached_key(|&b| z.key(&problem.bodies[b as usize].position));
+            self.new_index.clear();
+            self.new_index.resize(problem.bodies.len(), 0);
+            for (new, &old) in self.body_of.iter().enumerate() {
+                self.new_index[old as usize] = new as u32;
+            }
             self.rows.clear();
-            self.rows.extend(
-                self.plan
-                    .order()
-                    .iter()
-                    .map(|&k| PosRow::new(problem, k as usize, settings)),
-            );
+            self.rows.extend(self.plan.order().iter().map(|&k| {
+                let mut row = PosRow::new(problem, k as usize, settings);
+                (row.a, row.b) = (self.new_index[row.a as usize], self.new_index[row.b as usize]);
+                row
+            }));
+            self.renumbered.clear();
+            self.renumbered
+                .extend(self.body_of.iter().map(|&b| poses[b as usize]));
             crate::position_chunked::solve(
                 &self.rows,
                 &self.plan,
                 crate::sync::effective_threads(self.settings.threads),
                 settings,
-                poses,
+                &mut self.renumbered,
                 &mut report,
             );
+            for (&b, pose) in self.body_of.iter().zip(&self.renumbered) {
+                poses[b as usize] = *pose;
+            }
         } else {
             self.rows.clear();
             self.rows
