@@ -334,7 +334,10 @@ impl PositionSolver for PgsPositionSolver {
             self.rows.clear();
             self.rows.extend(self.plan.order().iter().map(|&k| {
                 let mut row = PosRow::new(problem, k as usize, settings);
-                (row.a, row.b) = (self.new_index[row.a as usize], self.new_index[row.b as usize]);
+                (row.a, row.b) = (
+                    self.new_index[row.a as usize],
+                    self.new_index[row.b as usize],
+                );
                 row
             }));
             self.renumbered.clear();

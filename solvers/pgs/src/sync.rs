@@ -117,9 +117,9 @@ pub(crate) fn run_phased(
                     return;
                 }
             }
-            for p in 0..phases {
+            for (p, &start) in phase_starts[..phases].iter().enumerate() {
                 // Every item of the earlier phases done before this phase's first.
-                let need = it * total + phase_starts[p];
+                let need = it * total + start;
                 wait_until(|| done.0.load(Mem::Acquire) >= need);
                 for k in 0..threads {
                     let t = (me + k) % threads;
