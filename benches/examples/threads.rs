@@ -2,7 +2,7 @@
 //! 10 000) stepped under the thesis stop rule (cap 1 000, ∞-norm < 1e-4, position cap 250)
 //! from the same snapshot, alternately for `--rounds` rounds: the plain one-thread solvers
 //! (unchunked sweep, position pass in problem order), the chunked plan on 1 thread and on
-//! `--threads` threads. Prints ms per step (whole step, velocity solve, the rest) per thread
+//! `--threads` threads (islands side by side, colours shared), as `simulate --threads` runs. Prints ms per step (whole step, velocity solve, the rest) per thread
 //! count and the ratio T threads / 1 thread, and checks that every run ends in the same
 //! bits (positions, velocities) whatever the thread count.
 //!
@@ -73,6 +73,7 @@ struct Run {
     iterations: u64,
     position_iterations: u64,
     contacts: u64,
+    islands: u64,
     bits: Vec<u64>,
 }
 
@@ -113,8 +114,15 @@ impl Config {
 /// `steps` thesis-rule steps of a copy of `snapshot` in configuration `config`.
 fn run(snapshot: &World, config: Config, steps: u64) -> Result<Run, String> {
     let mut world = snapshot.clone();
+    let island_threads = match config {
+        Config::Plain => 1,
+        Config::Chunked(t) => t,
+    };
     world
-        .set_settings(WorldSettings::default())
+        .set_settings(WorldSettings {
+            island_threads,
+            ..WorldSettings::default()
+        })
         .map_err(|e| e.to_string())?;
     let (mut solver, mut position) = config.solvers();
     let mut r = Run::default();
@@ -128,6 +136,7 @@ fn run(snapshot: &World, config: Config, steps: u64) -> Result<Run, String> {
         r.iterations += u64::from(s.velocity_iterations);
         r.position_iterations += u64::from(s.position_iterations);
         r.contacts += s.contacts as u64;
+        r.islands += s.islands as u64;
     }
     r.bits = world
         .bodies()
@@ -190,14 +199,15 @@ fn main() -> Result<(), String> {
     };
     println!(
         "Pile of {} circles (seed {SEED}) settled {} steps, then {} steps under the thesis stop \
-         rule, {} rounds; {:.0} contact points, {:.0} velocity iterations (slowest island) and \
-         {:.0} position iterations per step; the chunked runs bit-identical for every thread \
+         rule, {} rounds; {:.0} contact points in {:.1} islands, {:.0} velocity iterations \
+         (slowest island) and {:.0} position iterations per step; the chunked runs bit-identical for every thread \
          count (the unchunked run's position pass visits the points in another order).\n",
         o.bodies,
         o.settle,
         o.steps,
         o.rounds,
         reference.contacts as f64 / o.steps as f64,
+        reference.islands as f64 / o.steps as f64,
         reference.iterations as f64 / o.steps as f64,
         reference.position_iterations as f64 / o.steps as f64,
     );

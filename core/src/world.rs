@@ -527,8 +527,9 @@ impl World {
     }
 
     /// Every island's velocity solve from its warm start: side by side on up to
-    /// `island_threads` threads when the solver can fork, else one after another. An
-    /// island's result does not depend on which thread solved it.
+    /// `island_threads` threads when the solver can fork and no island holds more than a
+    /// thread's share of the points, else one after another. An island's result does not
+    /// depend on which thread solved it.
     fn solve_islands(&self, s: &mut Scratch, solver: &mut dyn VelocitySolver) {
         let settings = &self.settings.solver;
         let solve =
@@ -549,20 +550,43 @@ impl World {
                     .err();
             };
         let threads = self.settings.island_threads.min(s.problems.len());
-        let forks: Vec<_> = (1..threads).map_while(|_| solver.fork()).collect();
-        if forks.is_empty() {
+        // Side by side only when no island outweighs a thread's share of the points (else
+        // the largest island sets the time, and is better shared out by the solver itself).
+        let points: usize = s.problems.iter().map(ContactProblem::len).sum();
+        let largest = s
+            .problems
+            .iter()
+            .map(ContactProblem::len)
+            .max()
+            .unwrap_or(0);
+        let balanced = largest * threads <= points;
+        // Every worker, the stepping thread included, on a fork: a fork runs one thread, so
+        // the workers share the cores among islands instead of each sharing out its island.
+        let forks: Vec<_> = if threads > 1 && balanced {
+            (0..threads).map_while(|_| solver.fork()).collect()
+        } else {
+            Vec::new()
+        };
+        if forks.len() < 2 {
             for (problem, w) in s.problems.iter().zip(&mut s.islands) {
                 solve(solver, problem, w);
             }
             return;
         }
-        // Islands claimed one at a time from a counter, each in a slot of its own.
-        let slots: Vec<_> = s
+        // Islands claimed one at a time from a counter, largest first (so that the last to
+        // finish is a small one), each in a slot of its own.
+        let mut slots: Vec<_> = s
             .problems
             .iter()
             .zip(&mut s.islands)
             .map(std::sync::Mutex::new)
             .collect();
+        slots.sort_by_key(|slot| {
+            let slot = slot
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
+            std::cmp::Reverse(slot.0.points.len())
+        });
         let next = std::sync::atomic::AtomicUsize::new(0);
         let work = |solver: &mut dyn VelocitySolver| {
             loop {
@@ -575,11 +599,13 @@ impl World {
                 solve(solver, problem, w);
             }
         };
+        let mut forks = forks.into_iter();
+        let mut first = forks.next().expect("two forks or more");
         std::thread::scope(|scope| {
             for mut fork in forks {
                 scope.spawn(move || work(fork.as_mut()));
             }
-            work(solver);
+            work(first.as_mut());
         });
     }
 
