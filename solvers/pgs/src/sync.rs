@@ -4,8 +4,9 @@
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering as Mem};
 
 /// Three `f64`s that threads share, as bits in relaxed atomics (plain loads and stores on
-/// x86-64 and AArch64): each is written by one thread within a colour, and the barrier
-/// between colours orders the writes before the next colour's reads.
+/// x86-64 and AArch64): each is written by one thread within a phase, and [`run_phased`]'s
+/// completion count (release on completing, acquire before the next phase) orders the writes
+/// before the next phase's reads.
 #[derive(Debug, Default)]
 pub(crate) struct Cell3([AtomicU64; 3]);
 
@@ -174,21 +175,29 @@ mod tests {
 
     #[test]
     fn phased_items_run_in_phase_order_and_the_judge_stops_the_run() {
-        // Three phases of 5, 1 and 7 items; each item records (iteration, phase) and checks
-        // that every item of the earlier phases of its iteration has run.
+        // Three phases of 5, 1 and 7 items. An item of phase p finds its iteration i from the
+        // items of p started before it, then checks that every earlier phase of i is
+        // finished and no later phase of i has started, and that it got i's parity.
         let starts = phase_starts([5, 1, 7]);
+        let sizes = [5, 1, 7];
         for threads in 1..=4 {
-            let log = Mutex::new(Vec::new());
-            let counts: Vec<AtomicUsize> = (0..3).map(|_| AtomicUsize::new(0)).collect();
+            let started: Vec<AtomicUsize> = (0..3).map(|_| AtomicUsize::new(0)).collect();
+            let finished: Vec<AtomicUsize> = (0..3).map(|_| AtomicUsize::new(0)).collect();
             let judged = Mutex::new(Vec::new());
             let process = |item: usize, parity: usize| {
-                let phase = starts.partition_point(|&s| s <= item) - 1;
-                for (earlier, c) in counts.iter().enumerate().take(phase) {
-                    let n = starts[earlier + 1] - starts[earlier];
-                    assert_eq!(c.load(Mem::SeqCst) % n, 0, "phase {earlier} unfinished");
+                let p = starts.partition_point(|&s| s <= item) - 1;
+                let i = started[p].fetch_add(1, Mem::SeqCst) / sizes[p];
+                assert_eq!(parity, i % 2);
+                // Long enough that another thread could run ahead if the queue let it.
+                std::thread::yield_now();
+                for q in 0..3 {
+                    if q < p {
+                        assert_eq!(finished[q].load(Mem::SeqCst), (i + 1) * sizes[q]);
+                    } else if q > p {
+                        assert_eq!(started[q].load(Mem::SeqCst), i * sizes[q]);
+                    }
                 }
-                counts[phase].fetch_add(1, Mem::SeqCst);
-                log.lock().unwrap().push((parity, phase));
+                finished[p].fetch_add(1, Mem::SeqCst);
             };
             let judge = |it: u32, parity: usize| {
                 assert_eq!(it as usize % 2, parity);
@@ -198,9 +207,14 @@ mod tests {
             let ran = run_phased(threads, 100, &starts, &process, &judge);
             assert_eq!(ran, 7, "{threads} threads");
             assert_eq!(*judged.lock().unwrap(), (0..7).collect::<Vec<_>>());
-            assert_eq!(log.lock().unwrap().len(), 7 * 13);
+            for (f, n) in finished.iter().zip(sizes) {
+                assert_eq!(f.load(Mem::SeqCst), 7 * n, "every item once per iteration");
+            }
             // The cap ends a run that the judge never stops.
-            assert_eq!(run_phased(threads, 3, &starts, &process, &|_, _| false), 3);
+            assert_eq!(
+                run_phased(threads, 3, &starts, &|_, _| {}, &|_, _| false),
+                3
+            );
         }
     }
 }
