@@ -43,10 +43,9 @@ pub struct PgsPositionSolver {
     rows: Vec<PosRow>,
     /// The coloured plan: point indices colour by colour, and each colour's range in it.
     plan: crate::position_chunked::Plan,
-    /// For the coloured plan: the problem's body of each renumbered body (Z-order of the
-    /// positions), the renumbering, and the poses in that order.
-    body_of: Vec<u32>,
-    new_index: Vec<u32>,
+    /// For the coloured plan: the bodies renumbered in Z-order of their positions, and the
+    /// poses in that order.
+    bodies: crate::z_order::Renumbering,
     renumbered: Vec<Pose>,
 }
 
@@ -319,30 +318,21 @@ impl PositionSolver for PgsPositionSolver {
             return Ok(report);
         }
         if problem.points.len() >= self.settings.parallel_min_points {
-            self.plan.build(problem);
-            // Bodies renumbered in Z-order, so that a chunk's bodies share cache lines.
+            // Points coloured, each colour and the bodies in Z-order (so that a chunk's bodies
+            // share cache lines).
             let z = crate::z_order::ZOrder::of(&problem.points);
-            self.body_of.clear();
-            self.body_of.extend(0..problem.bodies.len() as u32);
-            self.body_of
-                .sort_by_cached_key(|&b| z.key(&problem.bodies[b as usize].position));
-            self.new_index.clear();
-            self.new_index.resize(problem.bodies.len(), 0);
-            for (new, &old) in self.body_of.iter().enumerate() {
-                self.new_index[old as usize] = new as u32;
-            }
+            self.plan.build(problem, &z);
+            self.bodies.build(&z, &problem.bodies);
+            let new = &self.bodies.new_index;
             self.rows.clear();
             self.rows.extend(self.plan.order().iter().map(|&k| {
                 let mut row = PosRow::new(problem, k as usize, settings);
-                (row.a, row.b) = (
-                    self.new_index[row.a as usize],
-                    self.new_index[row.b as usize],
-                );
+                (row.a, row.b) = (new[row.a as usize], new[row.b as usize]);
                 row
             }));
             self.renumbered.clear();
             self.renumbered
-                .extend(self.body_of.iter().map(|&b| poses[b as usize]));
+                .extend(self.bodies.body_of.iter().map(|&b| poses[b as usize]));
             crate::position_chunked::solve(
                 &self.rows,
                 &self.plan,
@@ -351,7 +341,7 @@ impl PositionSolver for PgsPositionSolver {
                 &mut self.renumbered,
                 &mut report,
             );
-            for (&b, pose) in self.body_of.iter().zip(&self.renumbered) {
+            for (&b, pose) in self.bodies.body_of.iter().zip(&self.renumbered) {
                 poses[b as usize] = *pose;
             }
         } else {
@@ -467,7 +457,7 @@ mod tests {
     fn coloured_plan_never_puts_two_points_on_one_movable_body_in_a_colour() {
         let (problem, _) = pile_problem();
         let mut plan = crate::position_chunked::Plan::default();
-        plan.build(&problem);
+        plan.build(&problem, &crate::z_order::ZOrder::of(&problem.points));
         assert!(plan.check(&problem), "a colour moves one body twice");
     }
 }

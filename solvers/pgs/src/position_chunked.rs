@@ -57,7 +57,7 @@ impl Plan {
     }
 
     /// Colours the points of `problem` (buffers reused).
-    pub(crate) fn build(&mut self, problem: &ContactProblem) {
+    pub(crate) fn build(&mut self, problem: &ContactProblem, z: &ZOrder) {
         self.body_colours.clear();
         self.body_colours.resize(problem.bodies.len(), 0);
         self.point_colours.clear();
@@ -104,7 +104,6 @@ impl Plan {
         // Each colour (but the overflow, whose order matters) in Z-order of its points, so
         // that a chunk holds neighbours: the points of a colour are independent, their order
         // changes nothing.
-        let z = ZOrder::of(&problem.points);
         for (range, overflow) in &self.colours {
             if !overflow {
                 self.order[range.clone()]

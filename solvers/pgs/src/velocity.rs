@@ -178,10 +178,9 @@ pub struct PgsSolver {
     /// Batches of single-point manifolds and the sweep plan (empty: one at a time).
     batches: Vec<Batch>,
     segments: Vec<Segment>,
-    /// For the chunked plan, the problem's body of each entry of `vel` (bodies renumbered in
-    /// Z-order of their positions, so that neighbours share cache lines); empty: the
-    /// problem's order.
-    body_of: Vec<u32>,
+    /// For the chunked plan, the bodies of `vel` renumbered in Z-order of their positions (so
+    /// that neighbours share cache lines); inactive: the problem's order.
+    bodies: crate::z_order::Renumbering,
 }
 
 impl PgsSolver {
@@ -202,12 +201,31 @@ impl PgsSolver {
     fn prepare(&mut self, problem: &ContactProblem, start: &[Impulse]) {
         self.batches.clear();
         self.segments.clear();
-        self.vel.clear();
-        self.vel.extend(problem.bodies.iter().map(|b| Vel {
+        // The chunked plan's grid (none for the plain sweep: not a pass over the points more).
+        let z = self
+            .plans_chunked(problem.points.len())
+            .then(|| crate::z_order::ZOrder::of(&problem.points));
+        match &z {
+            Some(z) => self.bodies.build(z, &problem.bodies),
+            None => self.bodies.clear(),
+        }
+        let vel = |b: &deepcontact_core::ProblemBody| Vel {
             vx: b.linear_velocity.x,
             vy: b.linear_velocity.y,
             w: b.angular_velocity,
-        }));
+        };
+        self.vel.clear();
+        if self.bodies.is_active() {
+            let bodies = &problem.bodies;
+            self.vel.extend(
+                self.bodies
+                    .body_of
+                    .iter()
+                    .map(|&b| vel(&bodies[b as usize])),
+            );
+        } else {
+            self.vel.extend(problem.bodies.iter().map(vel));
+        }
         self.rows.clear();
         let raw = self.settings.raw_start;
         self.rows
@@ -284,51 +302,31 @@ impl PgsSolver {
             }
             self.manifolds.push(m);
         }
-        self.body_of.clear();
-        if self.settings.ordering == Ordering::Coloured
-            && self.settings.lanes
-            && problem.points.len() >= self.settings.parallel_min_points
-        {
-            self.renumber_bodies(problem);
+        if self.bodies.is_active() {
+            let new = &self.bodies.new_index;
+            for m in &mut self.manifolds {
+                (m.a, m.b) = (new[m.a as usize], new[m.b as usize]);
+            }
         }
         if self.settings.ordering == Ordering::Coloured {
-            self.colour(problem);
+            self.colour(problem, z.as_ref());
         }
     }
 
-    /// For the chunked plan: bodies renumbered in Z-order of their positions (`vel` permuted,
-    /// the manifolds' body indices mapped), so that the bodies of a chunk of neighbouring
-    /// manifolds lie close together in memory. Only memory moves: every row sees the same
-    /// numbers.
-    fn renumber_bodies(&mut self, problem: &ContactProblem) {
-        let z = crate::z_order::ZOrder::of(&problem.points);
-        self.body_of.extend(0..problem.bodies.len() as u32);
-        self.body_of
-            .sort_by_cached_key(|&b| z.key(&problem.bodies[b as usize].position));
-        let mut new_index = vec![0u32; problem.bodies.len()];
-        for (new, &old) in self.body_of.iter().enumerate() {
-            new_index[old as usize] = new as u32;
-        }
-        self.vel.clear();
-        self.vel.extend(self.body_of.iter().map(|&b| {
-            let b = &problem.bodies[b as usize];
-            Vel {
-                vx: b.linear_velocity.x,
-                vy: b.linear_velocity.y,
-                w: b.angular_velocity,
-            }
-        }));
-        for m in &mut self.manifolds {
-            m.a = new_index[m.a as usize];
-            m.b = new_index[m.b as usize];
-        }
+    /// Whether an island of `points` contact points is swept in the chunked plan of
+    /// [`crate::velocity_chunked`] (coloured, laned, and large enough).
+    fn plans_chunked(&self, points: usize) -> bool {
+        self.settings.ordering == Ordering::Coloured
+            && self.settings.lanes
+            && points >= self.settings.parallel_min_points
     }
 
     /// Greedy colouring in problem order: each manifold takes the lowest colour that
     /// neither of its movable bodies has yet (64 colours; the rare manifold that finds
     /// none goes to a last, sequential colour). Immovable bodies never conflict: the
     /// loop does not write them. Manifolds are then stably sorted by colour.
-    fn colour(&mut self, problem: &ContactProblem) {
+    /// With `z` (the chunked plan), each colour is then ordered in Z-order.
+    fn colour(&mut self, problem: &ContactProblem, z: Option<&crate::z_order::ZOrder>) {
         const OVERFLOW: u8 = 64;
         self.body_colours.clear();
         self.body_colours.resize(problem.bodies.len(), 0);
@@ -377,8 +375,8 @@ impl PgsSolver {
             offsets[c as usize] += 1;
         }
         std::mem::swap(&mut self.manifolds, &mut self.scratch);
-        if problem.points.len() >= self.settings.parallel_min_points {
-            self.order_colours_in_space(problem, &counts);
+        if let Some(z) = z {
+            self.order_colours_in_space(problem, z, &counts);
         }
         if self.settings.lanes {
             self.batch(&counts);
@@ -389,8 +387,12 @@ impl PgsSolver {
     /// matters) in Z-order of their first point, so that a chunk holds neighbours and two
     /// threads share few bodies. Manifolds of a colour are independent: their order changes
     /// no impulse, only the grouping of `Σ Δλ²`.
-    fn order_colours_in_space(&mut self, problem: &ContactProblem, counts: &[u32; 65]) {
-        let z = crate::z_order::ZOrder::of(&problem.points);
+    fn order_colours_in_space(
+        &mut self,
+        problem: &ContactProblem,
+        z: &crate::z_order::ZOrder,
+        counts: &[u32; 65],
+    ) {
         let key = |m: &Manifold| z.key(&problem.points[m.start as usize].point);
         let mut start = 0;
         for &count in &counts[..64] {
@@ -508,11 +510,6 @@ impl PgsSolver {
         }
         acc.add_lanes(&lanes);
         acc
-    }
-
-    /// Whether this problem is swept in the chunked plan of [`crate::velocity_chunked`].
-    fn chunked(&self) -> bool {
-        !self.segments.is_empty() && self.rows.len() >= self.settings.parallel_min_points
     }
 
     /// Stage 3's loop on this thread: sweep until the stop rule holds, the cap is reached or
@@ -989,7 +986,8 @@ impl VelocitySolver for PgsSolver {
         report
             .residual_l2
             .reserve(settings.max_iterations.min(4096) as usize);
-        let (it, verdict) = if self.chunked() {
+        let (it, verdict) = if self.plans_chunked(problem.points.len()) && !self.segments.is_empty()
+        {
             crate::velocity_chunked::solve_chunked(
                 &mut crate::velocity_chunked::Sweepable {
                     batches: &mut self.batches,
@@ -1027,12 +1025,12 @@ impl VelocitySolver for PgsSolver {
             *imp = Impulse::new(r.ln, r.lt);
         }
         let velocity = |v: &Vel| Velocity::new(Vector::new(v.vx, v.vy), v.w);
-        if self.body_of.is_empty() {
+        if !self.bodies.is_active() {
             for (out, v) in velocities.iter_mut().zip(&self.vel) {
                 *out = velocity(v);
             }
         } else {
-            for (&b, v) in self.body_of.iter().zip(&self.vel) {
+            for (&b, v) in self.bodies.body_of.iter().zip(&self.vel) {
                 velocities[b as usize] = velocity(v);
             }
         }

@@ -2,9 +2,9 @@
 //!
 //! Each colour's batches are cut into chunks of [`CHUNK`] batches, and its one-at-a-time
 //! manifolds make one item more: the work items of a phase ([`crate::sync::run_phased`]).
-//! Threads claim items in order; manifolds of one colour share no movable body, so the items
-//! of a colour never write the same velocity, and an item starts only once the earlier
-//! colours are done (still Gauss-Seidel: every row sees the latest velocities). Each item's
+//! Threads claim items (each its own contiguous run of a colour first); manifolds of one
+//! colour share no movable body, so the items of a colour never write the same velocity, and
+//! an item starts only once the earlier colours are done (still Gauss-Seidel: every row sees the latest velocities). Each item's
 //! impulse-change measures go to a slot of their own, folded in slot order once the sweep is
 //! done, so the result is the same bits for any thread count and any assignment of items to
 //! threads (one thread runs the same items in the same order).
@@ -109,7 +109,11 @@ pub(crate) fn solve_chunked(
         counts.push(items.len() - before);
     }
     if threads == 1 {
-        return solve_one_thread(&mut items, s.serial, s.rows, s.vel, settings, report);
+        return if settings.norm == ResidualNorm::Contact {
+            solve_one_thread::<true>(&mut items, s.serial, s.rows, s.vel, settings, report)
+        } else {
+            solve_one_thread::<false>(&mut items, s.serial, s.rows, s.vel, settings, report)
+        };
     }
     let starts = phase_starts(counts);
     let slots: [Vec<Cell3>; 2] =
@@ -172,7 +176,7 @@ pub(crate) fn solve_chunked(
 /// The chunked plan on the calling thread: the same items in the same order, each item's
 /// measures folded in item order (so the same bits as on any number of threads), without the
 /// shared cells and the queue.
-fn solve_one_thread(
+fn solve_one_thread<const CONTACT: bool>(
     items: &mut [Item<'_>],
     serial: &[Manifold],
     rows: &mut [Row],
@@ -180,35 +184,21 @@ fn solve_one_thread(
     settings: &SolverSettings,
     report: &mut SolveReport,
 ) -> (u32, Verdict) {
-    let contact = settings.norm == ResidualNorm::Contact;
     let mut it = 0;
     while it < settings.max_iterations {
         let mut sweep = Sweep::default();
         for item in items.iter_mut() {
-            let one = match item {
-                Item::Batches(batches) => {
-                    let batches = batches
+            sweep.add(&match item {
+                Item::Batches(batches) => sweep_batches::<CONTACT>(
+                    batches
                         .get_mut()
-                        .unwrap_or_else(std::sync::PoisonError::into_inner);
-                    if contact {
-                        sweep_batches::<true>(batches, vel)
-                    } else {
-                        sweep_batches::<false>(batches, vel)
-                    }
-                }
+                        .unwrap_or_else(std::sync::PoisonError::into_inner),
+                    vel,
+                ),
                 Item::Serial(range) => {
-                    let mut one = Sweep::default();
-                    for m in &serial[range.clone()] {
-                        if contact {
-                            sweep_manifold::<true, _>(m, rows, vel, &mut one);
-                        } else {
-                            sweep_manifold::<false, _>(m, rows, vel, &mut one);
-                        }
-                    }
-                    one
+                    sweep_serial::<CONTACT, _>(&serial[range.clone()], rows, vel)
                 }
-            };
-            sweep.add(&one);
+            });
         }
         it += 1;
         match judge(settings, it, &sweep, Some(report)) {
@@ -234,30 +224,38 @@ fn sweep_batches<const CONTACT: bool>(
     sweep
 }
 
-/// Sweeps one item and returns its measures.
+/// Sweeps one-at-a-time manifolds in order and returns their measures.
+#[inline]
+fn sweep_serial<const CONTACT: bool, V: Velocities + ?Sized>(
+    manifolds: &[Manifold],
+    rows: &mut [Row],
+    vel: &mut V,
+) -> Sweep {
+    let mut sweep = Sweep::default();
+    for m in manifolds {
+        sweep_manifold::<CONTACT, _>(m, rows, vel, &mut sweep);
+    }
+    sweep
+}
+
+/// Sweeps one shared item on the shared velocities and returns its measures.
 fn sweep_item<const CONTACT: bool>(
     item: &Item<'_>,
     serial: &[Manifold],
     rows: &Mutex<&mut [Row]>,
     vel: &[Cell3],
 ) -> Sweep {
+    use std::sync::PoisonError;
     let mut vel = Shared(vel);
-    let mut sweep = Sweep::default();
     match item {
-        Item::Batches(batches) => {
-            let mut batches = batches
-                .lock()
-                .unwrap_or_else(std::sync::PoisonError::into_inner);
-            sweep = sweep_batches::<CONTACT>(&mut batches, &mut vel);
-        }
-        Item::Serial(range) => {
-            let mut rows = rows
-                .lock()
-                .unwrap_or_else(std::sync::PoisonError::into_inner);
-            for m in &serial[range.clone()] {
-                sweep_manifold::<CONTACT, _>(m, &mut rows, &mut vel, &mut sweep);
-            }
-        }
+        Item::Batches(batches) => sweep_batches::<CONTACT>(
+            &mut batches.lock().unwrap_or_else(PoisonError::into_inner),
+            &mut vel,
+        ),
+        Item::Serial(range) => sweep_serial::<CONTACT, _>(
+            &serial[range.clone()],
+            &mut rows.lock().unwrap_or_else(PoisonError::into_inner),
+            &mut vel,
+        ),
     }
-    sweep
 }
