@@ -496,10 +496,7 @@ impl World {
             .extend(s.point_source[k].iter().map(|&c| s.matched[c as usize]));
         work.warm.clear();
         work.warm.resize(n, Impulse::ZERO);
-        let ctx =
-            WarmStartContext::new(&s.problems[k], &work.carried, self.step_index, settings.dt)
-                .with_gravity(settings.gravity)
-                .with_world(self, k, s.problems.len());
+        let ctx = self.island_context(&s.problems, k, &work.carried);
         let t0 = Instant::now();
         let provided = plugins
             .warm_start
@@ -524,6 +521,18 @@ impl World {
             }
         }
         Ok(())
+    }
+
+    /// What a provider sees of island `k` of `problems` (its warm start and its observation).
+    fn island_context<'a>(
+        &'a self,
+        problems: &'a [ContactProblem],
+        k: usize,
+        carried: &'a [Option<Impulse>],
+    ) -> WarmStartContext<'a> {
+        WarmStartContext::new(&problems[k], carried, self.step_index, self.settings.dt)
+            .with_gravity(self.settings.gravity)
+            .with_world(self, k, problems.len())
     }
 
     /// Every island's velocity solve from its warm start: side by side on up to
@@ -575,23 +584,21 @@ impl World {
         }
         // Islands claimed one at a time from a counter, largest first (so that the last to
         // finish is a small one), each in a slot of its own.
-        let mut slots: Vec<_> = s
+        let mut order: Vec<usize> = (0..s.problems.len()).collect();
+        order.sort_by_key(|&k| std::cmp::Reverse(s.problems[k].len()));
+        let slots: Vec<_> = s
             .problems
             .iter()
             .zip(&mut s.islands)
             .map(std::sync::Mutex::new)
             .collect();
-        slots.sort_by_key(|slot| {
-            let slot = slot
-                .lock()
-                .unwrap_or_else(std::sync::PoisonError::into_inner);
-            std::cmp::Reverse(slot.0.points.len())
-        });
         let next = std::sync::atomic::AtomicUsize::new(0);
         let work = |solver: &mut dyn VelocitySolver| {
             loop {
-                let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                let Some(slot) = slots.get(k) else { return };
+                let claim = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let Some(slot) = order.get(claim).map(|&k| &slots[k]) else {
+                    return;
+                };
                 let mut slot = slot
                     .lock()
                     .unwrap_or_else(std::sync::PoisonError::into_inner);
@@ -622,14 +629,7 @@ impl World {
         if let Some(e) = work.error.take() {
             return Err(e);
         }
-        let ctx = WarmStartContext::new(
-            &s.problems[k],
-            &work.carried,
-            self.step_index,
-            self.settings.dt,
-        )
-        .with_gravity(self.settings.gravity)
-        .with_world(self, k, s.problems.len());
+        let ctx = self.island_context(&s.problems, k, &work.carried);
         // What a provider does after the solve is part of its cost.
         let t0 = Instant::now();
         plugins.warm_start.observe(
