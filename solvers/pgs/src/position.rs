@@ -34,7 +34,9 @@ impl Default for PgsPositionSettings {
 ///
 /// The separation of a point at the current poses is estimated from its separation when
 /// the contacts were computed plus the relative displacement of its two anchors along the
-/// (fixed) normal, the anchors rotating with their bodies (as Box2D v3's relax step does).
+/// (fixed) normal, the anchors rotating with their bodies (as Box2D v3's relax step does);
+/// circle contacts are re-measured from the centres instead under
+/// [`CircleContact::Remeasured`] (Box2D v2.3).
 #[derive(Debug, Clone, Default)]
 pub struct PgsPositionSolver {
     /// Options.
@@ -70,15 +72,6 @@ impl PgsPositionSolver {
             ..PgsPositionSettings::default()
         })
     }
-}
-
-/// Where a point's correction leaves it: its separation before the correction, `|C|` and
-/// `|impulse|`.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Correction {
-    pub(crate) separation: Real,
-    pub(crate) correction: Real,
-    pub(crate) impulse: Real,
 }
 
 /// Body poses as the pass reads and writes them: a plain slice on one thread, shared atomic
@@ -154,15 +147,16 @@ impl PosRow {
     }
 }
 
-/// Corrects one point at the current `poses`; with `skip_immovable`, bodies that cannot move
-/// are not written (so threads never write a shared wall).
+/// Corrects one point at the current `poses` and returns its measures; with
+/// `skip_immovable`, bodies that cannot move are not written (so threads never write a
+/// shared wall).
 #[inline(always)]
 pub(crate) fn correct_point<P: Poses + ?Sized>(
     row: &PosRow,
     settings: &PositionSettings,
     poses: &mut P,
     skip_immovable: bool,
-) -> Correction {
+) -> PassMeasures {
     let (ia, ib) = (row.a as usize, row.b as usize);
     let (
         Pose {
@@ -220,10 +214,10 @@ pub(crate) fn correct_point<P: Poses + ?Sized>(
             Pose::new(cb + row.mb * pv, tb + row.ib * cross(&rb, &pv)),
         );
     }
-    Correction {
-        separation: sep,
-        correction: c.abs(),
-        impulse: impulse.abs(),
+    PassMeasures {
+        min_separation: sep,
+        max_correction: c.abs(),
+        max_impulse: impulse.abs(),
     }
 }
 
@@ -240,7 +234,8 @@ pub(crate) fn immovable(b: &ProblemBody) -> bool {
     b.inv_mass == 0.0 && b.inv_inertia == 0.0
 }
 
-/// The measures of one iteration of the pass.
+/// The measures of a pass iteration, or of one point's correction: its separation before
+/// the correction, `|C|` and `|impulse|`.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct PassMeasures {
     pub(crate) min_separation: Real,
@@ -259,15 +254,7 @@ impl Default for PassMeasures {
 }
 
 impl PassMeasures {
-    /// Folds a point's correction in (min and max: the order does not matter).
-    #[inline(always)]
-    pub(crate) fn add(&mut self, c: &Correction) {
-        self.min_separation = self.min_separation.min(c.separation);
-        self.max_correction = self.max_correction.max(c.correction);
-        self.max_impulse = self.max_impulse.max(c.impulse);
-    }
-
-    /// Folds another set of measures in.
+    /// Folds another set of measures in (minima and maxima: the order does not matter).
     #[inline(always)]
     pub(crate) fn merge(&mut self, o: &PassMeasures) {
         self.min_separation = self.min_separation.min(o.min_separation);
@@ -351,7 +338,7 @@ impl PositionSolver for PgsPositionSolver {
             for it in 0..settings.max_iterations {
                 let mut m = PassMeasures::default();
                 for row in &self.rows {
-                    m.add(&correct_point(row, settings, poses, false));
+                    m.merge(&correct_point(row, settings, poses, false));
                 }
                 if m.judge(it, settings, &mut report) {
                     break;

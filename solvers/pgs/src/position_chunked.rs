@@ -190,7 +190,7 @@ pub(crate) fn solve(
             let mut all = PassMeasures::default();
             for item in &items {
                 for row in *item {
-                    all.add(&correct_point(row, settings, poses, true));
+                    all.merge(&correct_point(row, settings, poses, true));
                 }
             }
             if all.judge(it, settings, report) {
@@ -211,7 +211,7 @@ pub(crate) fn solve(
         let mut poses = Shared(&shared);
         let mut m = PassMeasures::default();
         for row in items[item] {
-            m.add(&correct_point(row, settings, &mut poses, true));
+            m.merge(&correct_point(row, settings, &mut poses, true));
         }
         slots[parity][item].store([m.min_separation, m.max_correction, m.max_impulse]);
     };
