@@ -222,11 +222,15 @@ pub(crate) fn correct_point<P: Poses + ?Sized>(
 }
 
 /// Whether a contact's anchor `r` on body `b` lies on the line of its normal `n` (a circle's
-/// anchor), or the body does not rotate.
+/// anchor), or the body does not rotate. The narrow phase (parry2d) computes in `f32`, so a
+/// circle's anchor and normal agree to about 1e-7 of the radius: the test allows 1e-5.
 #[inline(always)]
 fn on_centre_line(r: &Vector, n: &Vector, b: &ProblemBody) -> bool {
-    b.inv_inertia == 0.0 || cross(r, n).abs() <= 1e-9 * r.norm().max(1.0)
+    b.inv_inertia == 0.0 || cross(r, n).abs() <= ON_LINE * r.norm()
 }
+
+/// Relative tolerance of [`on_centre_line`].
+const ON_LINE: Real = 1e-5;
 
 /// Whether a body cannot be moved by a correction.
 #[inline(always)]
@@ -438,6 +442,55 @@ mod tests {
         let (coloured, plain) = (f64::from_bits(runs[0].2), f64::from_bits(in_order.2));
         assert!((coloured - plain).abs() < 1e-4, "{coloured} vs {plain}");
         assert!(coloured > deepest + 0.015, "{coloured} from {deepest}");
+    }
+
+    #[test]
+    fn regression_remeasured_circle_contacts_were_never_recognised_in_f32_geometry() {
+        // The circle test allowed 1e-9 of the radius; parry2d's f32 anchors and normals agree
+        // to ~1e-7, so almost no pile contact was re-measured. A circle-circle point of the
+        // pile, body B slid 0.1 m along the tangent: the fixed
+        // normal sees no change of separation, the re-measured one the true gap between the
+        // circles (|cB − cA| − (rA + rB)).
+        let (problem, _) = pile_problem();
+        let k = problem
+            .points
+            .iter()
+            .position(|p| {
+                let (a, b) = (
+                    &problem.bodies[p.body_a as usize],
+                    &problem.bodies[p.body_b as usize],
+                );
+                a.inv_mass > 0.0 && b.inv_mass > 0.0
+            })
+            .expect("a circle-circle contact");
+        let p = &problem.points[k];
+        let (ia, ib) = (p.body_a as usize, p.body_b as usize);
+        let mut poses: Vec<Pose> = problem
+            .bodies
+            .iter()
+            .map(|b| Pose::new(b.position, b.angle))
+            .collect();
+        poses[ib].position += 0.1 * Vector::new(-p.normal.y, p.normal.x);
+        let radii = p
+            .normal
+            .dot(&(problem.bodies[ib].position - problem.bodies[ia].position))
+            - p.separation;
+        let gap = (poses[ib].position - poses[ia].position).norm() - radii;
+        let measured = |circle_contact| {
+            let settings = PositionSettings {
+                circle_contact,
+                ..PositionSettings::default()
+            };
+            let row = PosRow::new(&problem, k, &settings);
+            correct_point(&row, &settings, poses.clone().as_mut_slice(), false).min_separation
+        };
+        assert!((measured(CircleContact::Fixed) - p.separation).abs() < 1e-12);
+        assert!((measured(CircleContact::Remeasured) - gap).abs() < 1e-12);
+        assert!(
+            gap - p.separation > 1e-3,
+            "the slide opens the gap: {gap} vs {}",
+            p.separation
+        );
     }
 
     #[test]
