@@ -561,17 +561,14 @@ impl World {
         let threads = self.settings.island_threads.min(s.problems.len());
         // Side by side only when no island outweighs a thread's share of the points (else
         // the largest island sets the time, and is better shared out by the solver itself).
-        let points: usize = s.problems.iter().map(ContactProblem::len).sum();
-        let largest = s
-            .problems
-            .iter()
-            .map(ContactProblem::len)
-            .max()
-            .unwrap_or(0);
-        let balanced = largest * threads <= points;
+        let balanced = || {
+            let points: usize = s.problems.iter().map(ContactProblem::len).sum();
+            let largest = s.problems.iter().map(ContactProblem::len).max();
+            largest.unwrap_or(0) * threads <= points
+        };
         // Every worker, the stepping thread included, on a fork: a fork runs one thread, so
         // the workers share the cores among islands instead of each sharing out its island.
-        let forks: Vec<_> = if threads > 1 && balanced {
+        let forks: Vec<_> = if threads > 1 && balanced() {
             (0..threads).map_while(|_| solver.fork()).collect()
         } else {
             Vec::new()
