@@ -179,9 +179,9 @@ impl Delassus {
             self.assemble_sparse()
         }
         self.diag.clear();
-        for i in 0..rows {
-            let d = self.entry(i, i);
-            self.diag.push(d);
+        for i in 0..rows / 2 {
+            let b = self.block(i, i);
+            self.diag.extend([b[0], b[3]]);
         }
         self.check_finite()
     }
@@ -518,6 +518,16 @@ impl Delassus {
     /// The 2×2 block of `W` of points `i` (rows) and `j` (columns), row-major.
     pub(crate) fn block(&self, i: usize, j: usize) -> [Real; 4] {
         let (r, c) = (2 * i, 2 * j);
+        if !self.dense && c + 1 < self.rows {
+            // Blocks are stored whole and columns 2j, 2j + 1 share their row pattern: one
+            // search finds all four entries.
+            let (rows, even) = self.sparse_col(c);
+            let (_, odd) = self.sparse_col(c + 1);
+            return match rows.binary_search(&r) {
+                Ok(k) => [even[k], odd[k], even[k + 1], odd[k + 1]],
+                Err(_) => [0.0; 4],
+            };
+        }
         [
             self.entry(r, c),
             self.entry(r, c + 1),

@@ -53,6 +53,12 @@ pub struct NewtonSettings {
     pub max_backtracks: u32,
     /// Validate the problem before solving (default true).
     pub validate: bool,
+    /// Stop the solve, unconverged, at the first iteration whose Newton step (coupled and
+    /// lagged) fails its line search, instead of retrying with larger regularisations and
+    /// falling back to a Gauss-Seidel sweep (default false). For a bounded refinement such as
+    /// the `presolve` warm start: the iterate so far is kept and the hard, slow part is left
+    /// to the caller's solver.
+    pub stop_on_failed_step: bool,
 }
 
 impl Default for NewtonSettings {
@@ -66,6 +72,7 @@ impl Default for NewtonSettings {
             backtrack: 0.5,
             max_backtracks: 8,
             validate: true,
+            stop_on_failed_step: false,
         }
     }
 }
@@ -341,7 +348,11 @@ impl NewtonSolver {
             it += 1;
             let theta = self.classify();
             if theta > 0.0 {
-                reg = self.newton_step(it, reg, scale, theta)?;
+                match self.newton_step(it, reg, scale, theta)? {
+                    Some(next) => reg = next,
+                    // Gave up (`stop_on_failed_step`): this iteration made no change.
+                    None => break,
+                }
             }
             if self.record_change(it, settings, report)? {
                 report.converged = true;
@@ -353,14 +364,15 @@ impl NewtonSolver {
 
     /// One iteration's move from `x` at merit `theta`: the Newton step (coupled, then with
     /// the friction bounds lagged, then with a growing regularisation), or a projected
-    /// Gauss-Seidel sweep when none is accepted. Returns the regularisation to go on with.
+    /// Gauss-Seidel sweep when none is accepted. Returns the regularisation to go on with, or
+    /// `None` when the step failed and `stop_on_failed_step` is set (nothing moved).
     fn newton_step(
         &mut self,
         it: u32,
         mut reg: Real,
         scale: Real,
         theta: Real,
-    ) -> Result<Real, LcpError> {
+    ) -> Result<Option<Real>, LcpError> {
         let (base, max_reg) = (
             self.settings.regularization,
             self.settings.max_regularization,
@@ -376,8 +388,11 @@ impl NewtonSolver {
                     // The line search updated the velocities; recompute them exactly, so
                     // that no round-off accumulates over the iterations.
                     self.delassus.velocity_of(&self.x, &mut self.w);
-                    return Ok((reg * 0.1).max(base));
+                    return Ok(Some((reg * 0.1).max(base)));
                 }
+            }
+            if self.settings.stop_on_failed_step {
+                return Ok(None);
             }
             if reg >= max_reg {
                 break;
@@ -388,7 +403,7 @@ impl NewtonSolver {
         }
         self.fallback_sweep(it)?;
         self.accept_trial();
-        Ok(reg)
+        Ok(Some(reg))
     }
 
     /// One projected Gauss-Seidel sweep from `x` into `trial` / `w_trial`.
@@ -688,5 +703,10 @@ impl VelocitySolver for NewtonSolver {
     ) -> Result<(), CoreError> {
         self.solve_lcp(problem, settings, impulses, velocities, report)
             .map_err(|e| e.into_core("newton"))
+    }
+
+    /// A fresh solver with the same settings (its own buffers and analysis).
+    fn fork(&self) -> Option<Box<dyn VelocitySolver>> {
+        Some(Box::new(NewtonSolver::with_settings(self.settings)))
     }
 }

@@ -44,12 +44,16 @@ pub fn register(registry: &mut Registry) {
     registry.register_solver(
         "newton",
         "semismooth Newton on the natural map (faer LU, Armijo line search); reg=1e-10 \
-         (relative regularisation), assembly=auto|dense|sparse, dense_threshold=128 (rows)",
+         (relative regularisation), assembly=auto|dense|sparse, dense_threshold=128 (rows), \
+         stop_on_failed_step=false (stop at the first failed line search instead of retrying)",
         |p| {
             let regularization = p.f64("reg", NewtonSettings::default().regularization)?;
             let (assembly, dense_threshold) = assembly(p)?;
+            let stop_on_failed_step =
+                p.choice("stop_on_failed_step", &["true", "false"])? == Some("true");
             let settings = NewtonSettings {
                 regularization,
+                stop_on_failed_step,
                 assembly,
                 dense_threshold,
                 ..NewtonSettings::default()

@@ -3,9 +3,9 @@
 
 mod common;
 
-use common::{max_diff, pile, rows, run, scale};
+use common::{Kind, max_diff, pile, random_problem, rows, run, scale};
 use deepcontact_core::math::Real;
-use deepcontact_core::{Impulse, SolverSettings, VelocitySolver};
+use deepcontact_core::{ContactProblem, Impulse, SolverSettings, VelocitySolver};
 use deepcontact_lcp::{
     AssemblyMode, Delassus, NewtonSettings, NewtonSolver, PsorSettings, PsorSolver, violation,
 };
@@ -259,4 +259,50 @@ fn dense_and_sparse_assembly_agree() {
 fn names() {
     assert_eq!(PsorSolver::new().name(), "psor");
     assert_eq!(NewtonSolver::new().name(), "newton");
+}
+
+/// `stop_on_failed_step` (the bounded refinement of the `presolve` warm start) never retries
+/// nor falls back to a sweep: it stops where the plain solver would have retried, with the
+/// same iterates up to there; a fork solves exactly like its parent. On the pile's islands
+/// and on hostile random problems (where the plain solver does retry).
+#[test]
+fn newton_stopping_on_a_failed_step_never_retries_and_forks_agree() {
+    let f = pile();
+    let settings = SolverSettings::default();
+    let stopping = NewtonSettings {
+        stop_on_failed_step: true,
+        ..NewtonSettings::default()
+    };
+    let mut cases: Vec<(ContactProblem, Vec<Impulse>)> = Vec::new();
+    for (k, p) in f.problems.iter().enumerate() {
+        cases.push((p.clone(), vec![Impulse::new(50.0, 50.0); p.points.len()]));
+        cases.push((p.clone(), f.carried[k].clone()));
+    }
+    for seed in 0..40 {
+        let p = random_problem(seed, Kind::Hostile);
+        let zeros = vec![Impulse::ZERO; p.points.len()];
+        cases.push((p, zeros));
+    }
+    let mut stopped = 0;
+    for (k, (p, start)) in cases.iter().enumerate() {
+        let mut plain = NewtonSolver::new();
+        let (full, _, full_report) = run(&mut plain, p, &settings, start);
+        let plain_stats = plain.last_stats();
+        let mut bounded = NewtonSolver::with_settings(stopping);
+        let (imp, _, r) = run(&mut bounded, p, &settings, start);
+        let stats = bounded.last_stats();
+        assert_eq!((stats.retries, stats.fallback_sweeps), (0, 0), "case {k}");
+        assert!(r.iterations <= full_report.iterations, "case {k}");
+        if plain_stats.retries == 0 && plain_stats.fallback_sweeps == 0 {
+            assert_eq!(r.iterations, full_report.iterations, "case {k}");
+            assert!(imp.iter().zip(&full).all(|(a, b)| a == b), "case {k}");
+        } else if !r.converged {
+            stopped += 1;
+        }
+        let mut fork = bounded.fork().expect("newton forks");
+        let (forked, _, fr) = run(&mut fork, p, &settings, start);
+        assert_eq!(fr.iterations, r.iterations);
+        assert!(forked.iter().zip(&imp).all(|(a, b)| a == b));
+    }
+    assert!(stopped > 0, "no case made the plain solver retry");
 }

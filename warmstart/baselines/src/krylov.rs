@@ -18,6 +18,10 @@ use deepcontact_core::{
 
 use crate::rows::{apply_jt, in_cone, row, row_velocity, velocities_after};
 
+/// Directions whose Rayleigh quotient `pᵀWp / pᵀDp` (D the diagonal of W) is below this lie
+/// in W's null space up to round-off: conjugate gradients stop there.
+const NULL_SPACE: Real = 1e-9;
+
 /// Parameters of [`KrylovWarmStart`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct KrylovConfig {
@@ -28,6 +32,9 @@ pub struct KrylovConfig {
     /// Rounds of (active set of the current start → CG → projection) (default 1, in
     /// 1..=[`KrylovWarmStart::MAX_ROUNDS`]).
     pub rounds: u32,
+    /// Relative regularisation ε: CG runs on `W_AA + ε D_AA` (D the diagonal of W), which
+    /// keeps the correction out of W's null space (default 0).
+    pub regularization: Real,
 }
 
 impl Default for KrylovConfig {
@@ -36,6 +43,7 @@ impl Default for KrylovConfig {
             iterations: 10,
             friction: true,
             rounds: 1,
+            regularization: 0.0,
         }
     }
 }
@@ -156,16 +164,24 @@ impl KrylovWarmStart {
                 break;
             }
             apply_jt(problem, &self.p, &mut self.dv);
-            let mut pq = 0.0;
+            let (mut pq, mut pdp) = (0.0, 0.0);
             for k in 0..rows {
+                let mass = row(problem, k).5;
+                let w_kk = if mass > 0.0 { 1.0 / mass } else { 0.0 };
                 self.q[k] = if self.active[k] {
                     row_velocity(problem, k, &self.dv)
+                        + self.config.regularization * w_kk * self.p[k]
                 } else {
                     0.0
                 };
                 pq += self.p[k] * self.q[k];
+                pdp += w_kk * self.p[k] * self.p[k];
             }
-            if pq <= 0.0 {
+            // A direction in W's null space (Rayleigh quotient against the diagonal at
+            // round-off level): the rest of the residual has no solution there (a
+            // restitution bias that no velocity of the island produces), and a step along it
+            // would be unbounded.
+            if pq <= NULL_SPACE * pdp {
                 break;
             }
             let alpha = rz / pq;

@@ -16,6 +16,7 @@
 //! | `krylov` | [`KrylovWarmStart`] | carried impulses plus a few conjugate-gradient steps on their active set |
 //! | `shock` | [`ShockWarmStart`] | normal loads propagated top-down, blended with the carried impulses |
 //! | `best` | [`BestOfWarmStart`] | the candidate start with the smallest one-sweep residual |
+//! | `presolve` | [`PresolveWarmStart`] | carried impulses refined by a few iterations of another solver (`newton`) |
 //! | `copy2`, `copy0` | [`Rounded`]`<`[`OracleWarmStart`]`>` | `copy` rounded to 2 / 0 decimals |
 //!
 //! [`Rounded`] wraps any provider, so "how much precision does a prediction need" can be
@@ -28,6 +29,7 @@ mod constant;
 mod extrapolate;
 mod krylov;
 mod oracle;
+mod presolve;
 mod random;
 mod registry;
 mod rounded;
@@ -40,6 +42,7 @@ pub use constant::ConstantWarmStart;
 pub use extrapolate::ExtrapolatedWarmStart;
 pub use krylov::{KrylovConfig, KrylovWarmStart};
 pub use oracle::{OracleConfig, OracleOrder, OracleWarmStart};
+pub use presolve::{PresolveConfig, PresolveWarmStart};
 pub use random::{RandomConfig, RandomWarmStart};
 pub use registry::register;
 pub use rounded::Rounded;

@@ -5,8 +5,8 @@ use deepcontact_core::{CarriedWarmStart, Impulse, ResidualNorm, ZeroWarmStart};
 
 use crate::{
     BestOfWarmStart, ConstantWarmStart, ExtrapolatedWarmStart, KrylovConfig, KrylovWarmStart,
-    OracleConfig, OracleOrder, OracleWarmStart, RandomConfig, RandomWarmStart, Rounded,
-    ShockWarmStart, TailConfig, TailWarmStart,
+    OracleConfig, OracleOrder, OracleWarmStart, PresolveConfig, PresolveWarmStart, RandomConfig,
+    RandomWarmStart, Rounded, ShockWarmStart, TailConfig, TailWarmStart,
 };
 
 /// Registers `none`, `builtin`, `random`, `bad`, `copy`, `copy2` and `copy0` (the oracles
@@ -128,15 +128,34 @@ fn register_contenders(registry: &mut Registry) {
     );
     registry.register_provider(
         "krylov",
-        "builtin plus conjugate-gradient steps on the carried active set; iterations=10, friction=true, rounds=1",
+        "builtin plus conjugate-gradient steps on the carried active set; iterations=10, friction=true, rounds=1, regularization=0 (CG on W_AA + eps diag W)",
         |p, _| {
             let d = KrylovConfig::default();
             let config = KrylovConfig {
                 iterations: u32_param(p, "iterations", d.iterations)?,
                 friction: p.choice("friction", &["true", "false"])? != Some("false"),
                 rounds: u32_param(p, "rounds", d.rounds)?,
+                regularization: p.f64("regularization", d.regularization)?,
             };
             Ok(Box::new(KrylovWarmStart::new(config)?))
+        },
+    );
+    registry.register_provider(
+        "presolve",
+        "carried impulses refined by a few iterations of another solver; solver=newton, iterations=3, tolerance=1e-6",
+        |p, r| {
+            let d = PresolveConfig::default();
+            let config = PresolveConfig {
+                iterations: u32_param(p, "iterations", d.iterations)?,
+                tolerance: p.f64("tolerance", d.tolerance)?,
+            };
+            let solver = p.string("solver").unwrap_or("newton").to_string();
+            let solver = match p.choice("on_failed_step", &["stop", "retry"])? {
+                Some("stop") if solver == "newton" => "newton:stop_on_failed_step=true".into(),
+                _ => solver,
+            };
+            let solver = r.build_solver(&solver)?;
+            Ok(Box::new(PresolveWarmStart::new(solver, config)?))
         },
     );
     registry.register_provider(

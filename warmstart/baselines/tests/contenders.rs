@@ -9,8 +9,8 @@ use deepcontact_core::{
 };
 use deepcontact_pgs::PgsSolver;
 use deepcontact_warmstart::{
-    BestOfWarmStart, ExtrapolatedWarmStart, KrylovConfig, KrylovWarmStart, ShockWarmStart,
-    TailConfig, TailWarmStart,
+    BestOfWarmStart, ExtrapolatedWarmStart, KrylovConfig, KrylovWarmStart, PresolveConfig,
+    PresolveWarmStart, ShockWarmStart, TailConfig, TailWarmStart,
 };
 
 const DT: f64 = 0.01;
@@ -242,4 +242,135 @@ fn tail_without_extrapolation_carries_the_converged_answer() {
         ..TailConfig::default()
     };
     assert!(TailWarmStart::new(Box::new(PgsSolver::new()), endless).is_err());
+}
+
+/// A box on the ground on three collinear points, spinning so that only one point is fast
+/// enough for restitution: `W_AA` is singular (six rows, three velocities) and the restitution
+/// bias is not a velocity of the box, so `W_AA Δ = r` has no solution.
+fn spinning_box_on_three_points() -> ContactProblem {
+    let mut p = ContactProblem::new();
+    let ground = p.add_body(ProblemBody::fixed(Vector::new(0.0, -0.5)));
+    let body = p.add_body(ProblemBody::dynamic(
+        Vector::new(0.0, 0.5),
+        0.0,
+        Vector::new(0.0, -1.0),
+        2.0,
+        1.0,
+        1.0 / 6.0,
+    ));
+    for (k, x) in [-0.5, 0.0, 0.5].into_iter().enumerate() {
+        p.begin_manifold();
+        let desc = PointDesc::new(ground, body, Vector::new(x, 0.0), Vector::new(0.0, 1.0))
+            .id(ContactId {
+                body_a: ground,
+                body_b: body,
+                feature_a: k as u64,
+                feature_b: 0,
+            })
+            .friction(0.5)
+            .restitution(0.5, 1.5);
+        p.add_point(&desc).unwrap();
+    }
+    p
+}
+
+#[test]
+fn regression_krylov_blew_up_to_1e26_on_a_singular_island_without_a_solution() {
+    let problem = spinning_box_on_three_points();
+    let biased = problem
+        .points
+        .iter()
+        .filter(|p| p.velocity_bias > 0.0)
+        .count();
+    assert_eq!(biased, 1, "the bias must not be a velocity of the box");
+    let carried = vec![Some(Impulse::new(0.1, 0.0)); 3];
+    for config in [
+        KrylovConfig::default(),
+        KrylovConfig {
+            iterations: 100,
+            ..KrylovConfig::default()
+        },
+    ] {
+        let start = start_of(
+            &mut KrylovWarmStart::new(config).unwrap(),
+            &problem,
+            &carried,
+            1,
+        );
+        // The box's momentum change is at most a few N·s: so is any sensible start.
+        for s in &start {
+            assert!(s.normal.abs() < 10.0 && s.tangent.abs() < 10.0, "{start:?}");
+        }
+    }
+}
+
+#[test]
+fn presolve_with_newton_reaches_the_column_answer_and_pgs_stops_at_once() {
+    let problem = column(8);
+    let answer = exact(8);
+    let carried: Vec<_> = answer
+        .iter()
+        .map(|i| Some(Impulse::new(0.75 * i.normal, 0.0)))
+        .collect();
+    let mut presolve = PresolveWarmStart::new(
+        Box::new(deepcontact_lcp::NewtonSolver::new()),
+        PresolveConfig::default(),
+    )
+    .unwrap();
+    let start = start_of(&mut presolve, &problem, &carried, 1);
+    assert!(presolve.last_report().iterations <= PresolveConfig::default().iterations);
+    for (got, want) in start.iter().zip(&answer) {
+        assert!(
+            (got.normal - want.normal).abs() < 1e-9,
+            "{got:?} vs {want:?}"
+        );
+    }
+    let from_carried = solve(
+        &problem,
+        &start_of(&mut CarriedWarmStart, &problem, &carried, 1),
+    );
+    let from_presolve = solve(&problem, &start);
+    assert!(from_presolve.1.iterations <= 2, "{:?}", from_presolve.1);
+    assert!(from_carried.1.iterations > 10 * from_presolve.1.iterations);
+}
+
+#[test]
+fn presolve_spends_at_most_its_iterations_and_rejects_bad_settings() {
+    let problem = column(8);
+    let carried = vec![None; 8];
+    // One PGS sweep from zeros as the inner solve: exactly one sweep, never more.
+    let config = PresolveConfig {
+        iterations: 1,
+        tolerance: 0.0,
+    };
+    let mut presolve = PresolveWarmStart::new(Box::new(PgsSolver::new()), config).unwrap();
+    let start = start_of(&mut presolve, &problem, &carried, 0);
+    assert_eq!(presolve.last_report().iterations, 1);
+    let mut sweep = vec![Impulse::ZERO; 8];
+    let mut velocities = vec![Velocity::default(); problem.bodies.len()];
+    let settings = SolverSettings {
+        max_iterations: 1,
+        tolerance: 0.0,
+        ..SolverSettings::default()
+    };
+    PgsSolver::new()
+        .solve(
+            &problem,
+            &settings,
+            &mut sweep,
+            &mut velocities,
+            &mut SolveReport::default(),
+        )
+        .unwrap();
+    assert_eq!(start, sweep);
+    // An empty island costs nothing.
+    let empty = ContactProblem::new();
+    assert!(start_of(&mut presolve, &empty, &[], 0).is_empty());
+    for (iterations, tolerance) in [(0, 1e-6), (10_001, 1e-6), (3, -1.0), (3, f64::NAN)] {
+        let config = PresolveConfig {
+            iterations,
+            tolerance,
+        };
+        assert!(PresolveWarmStart::new(Box::new(PgsSolver::new()), config).is_err());
+    }
 }
