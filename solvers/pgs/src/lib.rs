@@ -16,6 +16,11 @@
 //! a colour starts once the previous one is done; each chunk's measures are folded in chunk
 //! order, so the result is bit-identical for any thread count. Smaller islands run on the
 //! calling thread.
+//!
+//! **Instruction set.** The velocity sweep loop is compiled twice, for the x86-64 baseline and
+//! for AVX2 + FMA, and the solver picks one at run time (`pulp::Arch`, detected when the solver
+//! is made); a [`LANES`]-wide batch field then fills one 256-bit register. The arithmetic is
+//! the same operations in the same order, so the results are bit-identical either way.
 #![warn(missing_docs)]
 
 mod position;

@@ -76,11 +76,14 @@ enum Item<'a> {
 /// Runs stage 3's loop in the chunked plan, `chunk` batches a chunk ([`CHUNK`] in the
 /// solver), on up to `threads` threads (≥ 1; no more than the cores, nor than the widest
 /// colour has chunks). Returns the iterations run and the last verdict, as the one-thread
-/// loop does; `report` gets the residual of every iteration.
+/// loop does; `report` gets the residual of every iteration. The sweeps run compiled for
+/// `arch`: on one thread the whole loop, on several each work item (a chunk of batches or a
+/// colour's one-at-a-time manifolds).
 pub(crate) fn solve_chunked(
     s: &mut Sweepable<'_>,
     chunk: usize,
     threads: usize,
+    arch: pulp::Arch,
     settings: &SolverSettings,
     report: &mut SolveReport,
 ) -> (u32, Verdict) {
@@ -109,11 +112,14 @@ pub(crate) fn solve_chunked(
         counts.push(items.len() - before);
     }
     if threads == 1 {
-        return if settings.norm == ResidualNorm::Contact {
-            solve_one_thread::<true>(&mut items, s.serial, s.rows, s.vel, settings, report)
-        } else {
-            solve_one_thread::<false>(&mut items, s.serial, s.rows, s.vel, settings, report)
-        };
+        return arch.dispatch(OneThread {
+            items: &mut items,
+            serial: s.serial,
+            rows: s.rows,
+            vel: s.vel,
+            settings,
+            report,
+        });
     }
     let starts = phase_starts(counts);
     let slots: [Vec<Cell3>; 2] =
@@ -128,11 +134,13 @@ pub(crate) fn solve_chunked(
     let sweeps = Mutex::new(Vec::new());
     let contact = settings.norm == ResidualNorm::Contact;
     let process = |item: usize, parity: usize| {
-        let sweep = if contact {
-            sweep_item::<true>(&items[item], serial, &rows, &vel)
-        } else {
-            sweep_item::<false>(&items[item], serial, &rows, &vel)
-        };
+        let sweep = arch.dispatch(SharedItem {
+            item: &items[item],
+            serial,
+            rows: &rows,
+            vel: &vel,
+            contact,
+        });
         publish(&slots[parity][item], &sweep);
     };
     let judge_iteration = |it: u32, parity: usize| {
@@ -173,9 +181,64 @@ pub(crate) fn solve_chunked(
     last
 }
 
+/// [`solve_one_thread`] as an operation of [`pulp::Arch::dispatch`]: the whole loop compiled
+/// for the instruction set chosen at run time (same bits on every one).
+struct OneThread<'a, 'i> {
+    items: &'a mut [Item<'i>],
+    serial: &'a [Manifold],
+    rows: &'a mut [Row],
+    vel: &'a mut [Vel],
+    settings: &'a SolverSettings,
+    report: &'a mut SolveReport,
+}
+
+impl pulp::WithSimd for OneThread<'_, '_> {
+    type Output = (u32, Verdict);
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _simd: S) -> Self::Output {
+        let Self {
+            items,
+            serial,
+            rows,
+            vel,
+            settings,
+            report,
+        } = self;
+        if settings.norm == ResidualNorm::Contact {
+            solve_one_thread::<true>(items, serial, rows, vel, settings, report)
+        } else {
+            solve_one_thread::<false>(items, serial, rows, vel, settings, report)
+        }
+    }
+}
+
+/// [`sweep_item`] as an operation of [`pulp::Arch::dispatch`], one work item at a time.
+struct SharedItem<'a, 'i> {
+    item: &'a Item<'i>,
+    serial: &'a [Manifold],
+    rows: &'a Mutex<&'i mut [Row]>,
+    vel: &'a [Cell3],
+    contact: bool,
+}
+
+impl pulp::WithSimd for SharedItem<'_, '_> {
+    type Output = Sweep;
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _simd: S) -> Self::Output {
+        if self.contact {
+            sweep_item::<true>(self.item, self.serial, self.rows, self.vel)
+        } else {
+            sweep_item::<false>(self.item, self.serial, self.rows, self.vel)
+        }
+    }
+}
+
 /// The chunked plan on the calling thread: the same items in the same order, each item's
 /// measures folded in item order (so the same bits as on any number of threads), without the
 /// shared cells and the queue.
+#[inline(always)]
 fn solve_one_thread<const CONTACT: bool>(
     items: &mut [Item<'_>],
     serial: &[Manifold],
@@ -210,7 +273,7 @@ fn solve_one_thread<const CONTACT: bool>(
 }
 
 /// Sweeps a chunk of batches and returns its measures (lanes folded in lane order).
-#[inline]
+#[inline(always)]
 fn sweep_batches<const CONTACT: bool>(
     batches: &mut [Batch],
     vel: &mut (impl Velocities + ?Sized),
@@ -225,7 +288,7 @@ fn sweep_batches<const CONTACT: bool>(
 }
 
 /// Sweeps one-at-a-time manifolds in order and returns their measures.
-#[inline]
+#[inline(always)]
 fn sweep_serial<const CONTACT: bool, V: Velocities + ?Sized>(
     manifolds: &[Manifold],
     rows: &mut [Row],
@@ -239,6 +302,7 @@ fn sweep_serial<const CONTACT: bool, V: Velocities + ?Sized>(
 }
 
 /// Sweeps one shared item on the shared velocities and returns its measures.
+#[inline(always)]
 fn sweep_item<const CONTACT: bool>(
     item: &Item<'_>,
     serial: &[Manifold],
