@@ -103,13 +103,15 @@ fn compare_writes_every_file_and_ignores_the_thread_count() {
             "shock",
             "tail",
             "krylov",
-            "best"
+            "best",
+            "presolve"
         ]
     );
     assert_same_numbers(&one, &two);
 
+    let providers = one.warm_starts.len();
     let rows = compare::summarize(&one);
-    assert_eq!(rows.len(), 15);
+    assert_eq!(rows.len(), providers);
     let row = |name: &str| rows.iter().find(|r| r.warm_start == name).unwrap();
     assert!(
         row("none").contact_steps > 5,
@@ -143,7 +145,7 @@ fn compare_writes_every_file_and_ignores_the_thread_count() {
     let steps = read("steps.csv");
     let mut lines = steps.lines();
     assert_eq!(lines.next(), Some(STEPS_COLUMNS));
-    assert_eq!(lines.count(), 15 * 2 * 45);
+    assert_eq!(lines.count(), providers * 2 * 45);
     for col in [
         "contacts",
         "iterations",
@@ -168,7 +170,7 @@ fn compare_writes_every_file_and_ignores_the_thread_count() {
     );
     let summary = read("summary.csv");
     assert_eq!(summary.lines().next(), Some(SUMMARY_COLUMNS));
-    assert_eq!(summary.lines().count(), 1 + 15);
+    assert_eq!(summary.lines().count(), 1 + providers);
     let md = read("summary.md");
     assert_eq!(md, outputs.summary_md);
     for col in [
@@ -196,7 +198,7 @@ fn compare_writes_every_file_and_ignores_the_thread_count() {
     let parsed: serde_json::Value = serde_json::from_str(&json).unwrap();
     assert_eq!(
         parsed["summary"].as_array().map(Vec::len),
-        Some(15),
+        Some(providers),
         "{json}"
     );
     // Providers with state report it: tail its measured rate, best its candidates' shares.

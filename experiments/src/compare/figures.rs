@@ -34,7 +34,7 @@ pub const FIGURE_GROUPS: [(&str, &[&str]); 6] = [
     ("iterations_cnn", &["pressure", "peak"]),
     (
         "iterations_contenders",
-        &["extrapolate", "shock", "tail", "krylov", "best"],
+        &["extrapolate", "shock", "tail", "krylov", "best", "presolve"],
     ),
 ];
 

@@ -45,15 +45,24 @@ pub fn register(registry: &mut Registry) {
         "newton",
         "semismooth Newton on the natural map (faer LU, Armijo line search); reg=1e-10 \
          (relative regularisation), assembly=auto|dense|sparse, dense_threshold=128 (rows), \
-         stop_on_failed_step=false (stop at the first failed line search instead of retrying)",
+         stop_on_failed_step=false (stop at the first failed line search instead of retrying), \
+         max_backtracks=8",
         |p| {
             let regularization = p.f64("reg", NewtonSettings::default().regularization)?;
             let (assembly, dense_threshold) = assembly(p)?;
             let stop_on_failed_step =
                 p.choice("stop_on_failed_step", &["true", "false"])? == Some("true");
+            let max_backtracks = p.u64(
+                "max_backtracks",
+                u64::from(NewtonSettings::default().max_backtracks),
+            )?;
+            let max_backtracks = u32::try_from(max_backtracks).map_err(|_| {
+                p.invalid("max_backtracks", &max_backtracks.to_string(), "too large")
+            })?;
             let settings = NewtonSettings {
                 regularization,
                 stop_on_failed_step,
+                max_backtracks,
                 assembly,
                 dense_threshold,
                 ..NewtonSettings::default()
