@@ -12,12 +12,9 @@
 //! cargo run --release -p deepcontact-experiments --example start_error -- 100..104
 //! ```
 
-use deepcontact_core::{
-    CarriedWarmStart, ContactProblem, Impulse, SolveReport, SolverSettings, Velocity,
-    VelocitySolver, WarmStart, WarmStartContext, WarmStartError, WorldSettings, scene,
-};
+use deepcontact_core::{ContactProblem, Impulse, SolverSettings};
+use deepcontact_experiments::record::{IslandRecorder, pgs_iterations};
 use deepcontact_lcp::{AssemblyMode, DEFAULT_DENSE_THRESHOLD, Delassus};
-use deepcontact_pgs::{PgsPositionSolver, PgsSolver};
 use nalgebra::{DMatrix, DVector};
 
 /// Steps recorded in each pile.
@@ -25,58 +22,9 @@ const STEPS: [u64; 5] = [150, 175, 200, 225, 249];
 /// Share of the active set's eigenvalues counted as "slow".
 const SLOW_SHARE: f64 = 0.10;
 
-/// `builtin`, recording the largest island's problem and start at the chosen steps.
-#[derive(Default)]
-struct Recorder {
-    taken: Vec<(u64, ContactProblem, Vec<Impulse>)>,
-}
-
-impl WarmStart for Recorder {
-    fn name(&self) -> &str {
-        "builtin"
-    }
-
-    fn warm_start(
-        &mut self,
-        ctx: &WarmStartContext<'_>,
-        out: &mut [Impulse],
-    ) -> Result<(), WarmStartError> {
-        CarriedWarmStart.warm_start(ctx, out)?;
-        if STEPS.contains(&ctx.step) {
-            let largest = self
-                .taken
-                .last()
-                .is_some_and(|(s, p, _)| *s == ctx.step && p.len() >= ctx.problem.len());
-            if !largest {
-                self.taken.retain(|(s, _, _)| *s != ctx.step);
-                self.taken
-                    .push((ctx.step, ctx.problem.clone(), out.to_vec()));
-            }
-        }
-        Ok(())
-    }
-}
-
 /// PGS iterations from `start` to `tolerance`, and the answer.
 fn solve(problem: &ContactProblem, start: &[Impulse], tolerance: f64) -> (u32, Vec<Impulse>) {
-    let settings = SolverSettings {
-        tolerance,
-        max_iterations: if tolerance < 1e-8 { 200_000 } else { 1000 },
-        ..SolverSettings::default()
-    };
-    let mut lambda = start.to_vec();
-    let mut velocities = vec![Velocity::default(); problem.bodies.len()];
-    let mut report = SolveReport::default();
-    PgsSolver::new()
-        .solve(
-            problem,
-            &settings,
-            &mut lambda,
-            &mut velocities,
-            &mut report,
-        )
-        .expect("a recorded problem solves");
-    (report.iterations, lambda)
+    pgs_iterations(problem, start, tolerance).expect("a recorded problem solves")
 }
 
 fn flat(x: &[Impulse]) -> DVector<f64> {
@@ -175,13 +123,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut totals = [0.0; 5];
     let mut count = 0.0;
     for seed in seeds {
-        let mut world = scene::pile(seed, 100)?.build(WorldSettings::default())?;
-        let mut recorder = Recorder::default();
-        let (mut solver, mut position) = (PgsSolver::new(), PgsPositionSolver::new());
-        for _ in 0..=STEPS[STEPS.len() - 1] {
-            world.step(&mut recorder, &mut solver, &mut position)?;
-        }
-        for (step, problem, carried) in &recorder.taken {
+        for (step, problem, carried) in &IslandRecorder::record_pile(seed, 100, &STEPS)? {
             let r = analyse(seed, *step, problem, carried);
             println!(
                 "| {} | {} | {} | {} | {} | {:.3e} | {:.3} | {:.3e} | {} | {} | {:.2e} |",

@@ -46,6 +46,7 @@ pub mod generate;
 pub mod limits;
 pub mod plots;
 pub mod preset;
+pub mod record;
 mod registry;
 pub mod render;
 pub mod roundtrip;

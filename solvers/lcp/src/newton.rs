@@ -283,6 +283,84 @@ impl NewtonSolver {
         Ok(())
     }
 
+    /// One full Newton step from `start` on the active set of `reference`: every row is
+    /// classified (separating, sticking, sliding up or down) as the method would classify it
+    /// at `reference`, the generalised-Jacobian system of that classification is solved at
+    /// `start` (coupled friction bounds, relative regularisation
+    /// [`NewtonSettings::regularization`], grown ×100 until the solution is accurate), and
+    /// `start + Δ`, projected onto the friction cone, is written to `out`. No line search.
+    ///
+    /// With `reference` the answer, this is what a predictor of the active set alone would
+    /// buy: the values then follow from one linear solve (docs/RESEARCH.md, issue 13). With
+    /// `reference = start` it is Newton's first step without its line search. Returns the
+    /// regularisation used; `out` must have the problem's length.
+    pub fn step_on_active_set(
+        &mut self,
+        problem: &ContactProblem,
+        reference: &[Impulse],
+        start: &[Impulse],
+        out: &mut [Impulse],
+    ) -> Result<Real, LcpError> {
+        let points = problem.points.len();
+        for (what, len) in [
+            ("reference", reference.len()),
+            ("start", start.len()),
+            ("out", out.len()),
+        ] {
+            if len != points {
+                return Err(CoreError::LengthMismatch {
+                    what,
+                    expected: points,
+                    got: len,
+                }
+                .into());
+            }
+        }
+        if self.settings.validate {
+            problem.validate()?;
+        }
+        self.set_up(problem)?;
+        self.start_from(reference)?;
+        self.classify();
+        self.coupled = true;
+        self.start_from(start)?;
+        for (p, &mu) in self.delassus.friction().iter().enumerate() {
+            let (n, t) = (2 * p, 2 * p + 1);
+            let (ln, lt) = (self.x[n], self.x[t]);
+            self.rhs[n] = match self.state[n] {
+                RowState::Free => -self.w[n],
+                _ => -ln,
+            };
+            self.rhs[t] = match self.state[t] {
+                RowState::Free => -self.w[t],
+                RowState::Upper => -(lt - mu * ln),
+                RowState::Lower => -(lt + mu * ln),
+                RowState::Fixed => -lt,
+            };
+        }
+        let scale = self
+            .delassus
+            .diagonal()
+            .iter()
+            .fold(0.0, |m: Real, &v| m.max(v));
+        let scale = if scale > 0.0 { scale } else { 1.0 };
+        let reg = self.newton_direction(0, self.settings.regularization, scale)?;
+        for ((x, d), o) in self
+            .x
+            .chunks_exact(2)
+            .zip(self.d.chunks_exact(2))
+            .zip(out.iter_mut())
+        {
+            *o = Impulse::new(x[0] + d[0], x[1] + d[1]);
+        }
+        for (o, &friction) in out.iter_mut().zip(self.delassus.friction()) {
+            let normal = o.normal.max(0.0);
+            let bound = friction * normal;
+            *o = Impulse::new(normal, o.tangent.clamp(-bound, bound));
+        }
+        Ok(reg)
+    }
+
     /// Assembles the problem, sizes the buffers and analyses the Newton matrix's pattern.
     fn set_up(&mut self, problem: &ContactProblem) -> Result<(), LcpError> {
         self.delassus.assemble(

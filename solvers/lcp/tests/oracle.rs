@@ -259,3 +259,41 @@ fn dense_and_sparse_newton_make_the_same_iterates() {
         }
     }
 }
+
+/// Given the answer's active set, the frictional problem is linear: one Newton step on it
+/// lands on the answer from any start (well-conditioned problems, where the answer is
+/// unique); on its own active set it is Newton's first step. Wrong lengths are typed errors.
+#[test]
+fn one_step_on_the_answers_active_set_reaches_the_answer() {
+    let mut newton = NewtonSolver::new();
+    for seed in 0..SEEDS {
+        let p = random_problem(seed, Kind::Well);
+        let exact = solve_exact(&p, 1e-9).unwrap();
+        let s = scale(&exact.impulses) * p.points.len() as Real;
+        let n = p.points.len();
+        for start in [vec![Impulse::ZERO; n], vec![Impulse::new(1.0, -0.5); n]] {
+            let mut out = vec![Impulse::ZERO; n];
+            newton
+                .step_on_active_set(&p, &exact.impulses, &start, &mut out)
+                .unwrap();
+            let di = common::max_diff(&out, &exact.impulses);
+            assert!(
+                di < 1e-6 * s,
+                "seed {seed}: {out:?} vs {:?}",
+                exact.impulses
+            );
+        }
+    }
+    let p = random_problem(0, Kind::Well);
+    let n = p.points.len();
+    let mut out = vec![Impulse::ZERO; n + 1];
+    let e = newton
+        .step_on_active_set(
+            &p,
+            &vec![Impulse::ZERO; n],
+            &vec![Impulse::ZERO; n],
+            &mut out,
+        )
+        .unwrap_err();
+    assert!(e.to_string().contains("out"), "{e}");
+}
