@@ -10,7 +10,9 @@
 use deepcontact_core::math::{Pose, Vector};
 use deepcontact_core::{ContactProblem, PositionReport, PositionSettings};
 
-use crate::position::{PassMeasures, PosRow, Poses, correct_point, immovable};
+use crate::position::{
+    CachedPoses, PassMeasures, PosRow, Poses, RotationCache, correct_point, immovable,
+};
 use std::sync::Mutex;
 
 use crate::sync::{Cell3, phase_starts, run_phased};
@@ -162,6 +164,7 @@ pub(crate) fn solve(
     threads: usize,
     settings: &PositionSettings,
     poses: &mut [Pose],
+    rotations: &mut RotationCache,
     report: &mut PositionReport,
 ) {
     let chunk = plan.chunk;
@@ -185,12 +188,18 @@ pub(crate) fn solve(
         counts.push(items.len() - before);
     }
     if threads == 1 {
-        // The same items in the same order on the calling thread, without shared cells.
+        // The same items in the same order on the calling thread, without shared cells
+        // (and with the bodies' rotations kept, which shared cells cannot).
+        rotations.reset(poses.len());
+        let mut cached = CachedPoses {
+            poses,
+            cache: rotations,
+        };
         for it in 0..settings.max_iterations {
             let mut all = PassMeasures::default();
             for item in &items {
                 for row in *item {
-                    all.merge(&correct_point(row, settings, poses, true));
+                    all.merge(&correct_point(row, settings, &mut cached, true));
                 }
             }
             if all.judge(it, settings, report) {
