@@ -112,29 +112,10 @@ impl RotationCache {
     /// of those very bits would find the stored (NaN, NaN), which is what `sin_cos` gives.
     pub(crate) fn reset(&mut self, bodies: usize) {
         self.keys.clear();
+        self.keys
+            .resize(bodies, (Real::NAN.to_bits(), Real::NAN.to_bits()));
         self.rotations.clear();
-        self.fit(bodies);
-    }
-
-    /// Room for `bodies` bodies, keeping the entries there are: an entry is keyed by both
-    /// inputs of the `sin_cos`, so it stays right across passes and problems.
-    pub(crate) fn fit(&mut self, bodies: usize) {
-        if self.keys.len() < bodies {
-            self.keys
-                .resize(bodies, (Real::NAN.to_bits(), Real::NAN.to_bits()));
-            self.rotations.resize(bodies, (Real::NAN, Real::NAN));
-        }
-    }
-
-    /// `sin_cos(angle − angle0)` of body `i`, from the cache when its inputs are unchanged.
-    #[inline(always)]
-    pub(crate) fn rotation(&mut self, i: usize, angle: Real, angle0: Real) -> (Real, Real) {
-        let key = (angle.to_bits(), angle0.to_bits());
-        if self.keys[i] != key {
-            self.keys[i] = key;
-            self.rotations[i] = (angle - angle0).sin_cos();
-        }
-        self.rotations[i]
+        self.rotations.resize(bodies, (Real::NAN, Real::NAN));
     }
 }
 
@@ -151,7 +132,12 @@ impl Poses for CachedPoses<'_> {
 
     #[inline(always)]
     fn rotation(&mut self, i: usize, angle: Real, angle0: Real) -> (Real, Real) {
-        self.cache.rotation(i, angle, angle0)
+        let key = (angle.to_bits(), angle0.to_bits());
+        if self.cache.keys[i] != key {
+            self.cache.keys[i] = key;
+            self.cache.rotations[i] = (angle - angle0).sin_cos();
+        }
+        self.cache.rotations[i]
     }
 }
 

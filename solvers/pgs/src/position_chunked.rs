@@ -7,13 +7,12 @@
 //! pass's measures are minima and maxima, which do not depend on the order they are folded
 //! in, so the result is the same bits for any thread count.
 
-use deepcontact_core::math::{Pose, Real, Vector};
+use deepcontact_core::math::{Pose, Vector};
 use deepcontact_core::{ContactProblem, PositionReport, PositionSettings};
 
 use crate::position::{
     CachedPoses, PassMeasures, PosRow, Poses, RotationCache, correct_point, immovable,
 };
-use std::cell::RefCell;
 use std::sync::Mutex;
 
 use crate::sync::{Cell3, phase_starts, run_phased};
@@ -139,21 +138,10 @@ impl Plan {
     }
 }
 
-/// The shared poses as the pass sees them, with the running thread's rotation cache.
-struct Shared<'a, 'c>(&'a [Cell3], &'c mut RotationCache);
+/// The shared poses as the pass sees them.
+struct Shared<'a>(&'a [Cell3]);
 
-thread_local! {
-    /// Each worker thread's bodies' last rotations (entries are keyed by their inputs, so
-    /// they stay right whichever pass or problem the thread works on next).
-    static ROTATIONS: RefCell<RotationCache> = RefCell::new(RotationCache::default());
-}
-
-impl Poses for Shared<'_, '_> {
-    #[inline(always)]
-    fn rotation(&mut self, i: usize, angle: Real, angle0: Real) -> (Real, Real) {
-        self.1.rotation(i, angle, angle0)
-    }
-
+impl Poses for Shared<'_> {
     #[inline(always)]
     fn get(&self, i: usize) -> Pose {
         let [x, y, angle] = self.0[i].load();
@@ -229,14 +217,11 @@ pub(crate) fn solve(
         .collect();
     let passes = Mutex::new(Vec::new());
     let process = |item: usize, parity: usize| {
+        let mut poses = Shared(&shared);
         let mut m = PassMeasures::default();
-        ROTATIONS.with_borrow_mut(|cache| {
-            cache.fit(shared.len());
-            let mut poses = Shared(&shared, cache);
-            for row in items[item] {
-                m.merge(&correct_point(row, settings, &mut poses, true));
-            }
-        });
+        for row in items[item] {
+            m.merge(&correct_point(row, settings, &mut poses, true));
+        }
         slots[parity][item].store([m.min_separation, m.max_correction, m.max_impulse]);
     };
     let judge = |it: u32, parity: usize| {
@@ -257,8 +242,7 @@ pub(crate) fn solve(
     };
     run_phased(threads, settings.max_iterations, &starts, &process, &judge);
     for (i, pose) in poses.iter_mut().enumerate() {
-        let [x, y, angle] = shared[i].load();
-        *pose = Pose::new(Vector::new(x, y), angle);
+        *pose = Shared(&shared).get(i);
     }
     // The report as the last judged iteration left it.
     let passes = passes
