@@ -1,6 +1,6 @@
 //! The position pass: Box2D v2.4's non-linear Gauss-Seidel on the contact separations.
 
-use deepcontact_core::math::{Pose, Real, Vector, cross};
+use deepcontact_core::math::{Pose, Real, Vector, cross, rotate};
 use deepcontact_core::{
     CircleContact, ContactProblem, CoreError, PositionReport, PositionSettings, PositionSolver,
     ProblemBody,
@@ -49,8 +49,6 @@ pub struct PgsPositionSolver {
     /// poses in that order.
     bodies: crate::z_order::Renumbering,
     renumbered: Vec<Pose>,
-    /// The bodies' last rotations (one-thread passes).
-    rotations: RotationCache,
 }
 
 impl PgsPositionSolver {
@@ -83,69 +81,6 @@ pub(crate) trait Poses {
     fn get(&self, i: usize) -> Pose;
     /// Sets the pose of body `i`.
     fn set(&mut self, i: usize, pose: Pose);
-    /// `(sin, cos)` of body `i`'s rotation since the contacts were computed, `angle −
-    /// angle0` (`angle` its current angle, `angle0` the one the contacts saw).
-    #[inline(always)]
-    fn rotation(&mut self, _i: usize, angle: Real, angle0: Real) -> (Real, Real) {
-        (angle - angle0).sin_cos()
-    }
-}
-
-/// Poses with each body's last rotation kept: a body whose angle has not changed since its
-/// last contact of the pass (every contact already within the slop leaves both bodies where
-/// they are) reuses its `sin_cos` — the same function of the same bits, so the same result.
-/// `sin_cos` was 18 % of a step's instructions on the 100-body pile (callgrind).
-pub(crate) struct CachedPoses<'a> {
-    pub(crate) poses: &'a mut [Pose],
-    pub(crate) cache: &'a mut RotationCache,
-}
-
-/// Per body: the bits of the `(angle, angle0)` last rotated and that rotation's `(sin, cos)`.
-#[derive(Debug, Clone, Default)]
-pub(crate) struct RotationCache {
-    keys: Vec<(u64, u64)>,
-    rotations: Vec<(Real, Real)>,
-}
-
-impl RotationCache {
-    /// Empties the cache for `bodies` bodies. Its keys start as the bits of NaN: a NaN angle
-    /// of those very bits would find the stored (NaN, NaN), which is what `sin_cos` gives.
-    pub(crate) fn reset(&mut self, bodies: usize) {
-        self.keys.clear();
-        self.keys
-            .resize(bodies, (Real::NAN.to_bits(), Real::NAN.to_bits()));
-        self.rotations.clear();
-        self.rotations.resize(bodies, (Real::NAN, Real::NAN));
-    }
-}
-
-impl Poses for CachedPoses<'_> {
-    #[inline(always)]
-    fn get(&self, i: usize) -> Pose {
-        self.poses[i]
-    }
-
-    #[inline(always)]
-    fn set(&mut self, i: usize, pose: Pose) {
-        self.poses[i] = pose;
-    }
-
-    #[inline(always)]
-    fn rotation(&mut self, i: usize, angle: Real, angle0: Real) -> (Real, Real) {
-        let key = (angle.to_bits(), angle0.to_bits());
-        if self.cache.keys[i] != key {
-            self.cache.keys[i] = key;
-            self.cache.rotations[i] = (angle - angle0).sin_cos();
-        }
-        self.cache.rotations[i]
-    }
-}
-
-/// `v` rotated by the rotation whose `(sin, cos)` is `sc` (the arithmetic of
-/// [`deepcontact_core::math::rotate`]).
-#[inline(always)]
-fn rotated(v: &Vector, (s, c): (Real, Real)) -> Vector {
-    Vector::new(c * v.x - s * v.y, s * v.x + c * v.y)
 }
 
 impl Poses for [Pose] {
@@ -238,8 +173,8 @@ pub(crate) fn correct_point<P: Poses + ?Sized>(
         row.mb == 0.0 && row.ib == 0.0,
     );
     let (ra, rb, normal, sep) = if !row.remeasure {
-        let ra = rotated(&row.ra0, poses.rotation(ia, ta, row.ta0));
-        let rb = rotated(&row.rb0, poses.rotation(ib, tb, row.tb0));
+        let ra = rotate(&row.ra0, ta - row.ta0);
+        let rb = rotate(&row.rb0, tb - row.tb0);
         // s = s0 + n · [(cB + rB) − (cA + rA) − ((cB0 + rB0) − (cA0 + rA0))]
         let d = (cb + rb - ca - ra) - (row.cb0 + row.rb0 - row.ca0 - row.ra0);
         (ra, rb, row.normal, row.separation + row.normal.dot(&d))
@@ -395,7 +330,6 @@ impl PositionSolver for PgsPositionSolver {
                 crate::sync::effective_threads(self.settings.threads),
                 settings,
                 &mut self.renumbered,
-                &mut self.rotations,
                 &mut report,
             );
             for (&b, pose) in self.bodies.body_of.iter().zip(&self.renumbered) {
@@ -405,15 +339,10 @@ impl PositionSolver for PgsPositionSolver {
             self.rows.clear();
             self.rows
                 .extend((0..problem.points.len()).map(|k| PosRow::new(problem, k, settings)));
-            self.rotations.reset(poses.len());
-            let mut cached = CachedPoses {
-                poses,
-                cache: &mut self.rotations,
-            };
             for it in 0..settings.max_iterations {
                 let mut m = PassMeasures::default();
                 for row in &self.rows {
-                    m.merge(&correct_point(row, settings, &mut cached, false));
+                    m.merge(&correct_point(row, settings, poses, false));
                 }
                 if m.judge(it, settings, &mut report) {
                     break;

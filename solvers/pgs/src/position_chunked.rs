@@ -10,9 +10,7 @@
 use deepcontact_core::math::{Pose, Vector};
 use deepcontact_core::{ContactProblem, PositionReport, PositionSettings};
 
-use crate::position::{
-    CachedPoses, PassMeasures, PosRow, Poses, RotationCache, correct_point, immovable,
-};
+use crate::position::{PassMeasures, PosRow, Poses, correct_point, immovable};
 use std::sync::Mutex;
 
 use crate::sync::{Cell3, phase_starts, run_phased};
@@ -164,7 +162,6 @@ pub(crate) fn solve(
     threads: usize,
     settings: &PositionSettings,
     poses: &mut [Pose],
-    rotations: &mut RotationCache,
     report: &mut PositionReport,
 ) {
     let chunk = plan.chunk;
@@ -188,18 +185,12 @@ pub(crate) fn solve(
         counts.push(items.len() - before);
     }
     if threads == 1 {
-        // The same items in the same order on the calling thread, without shared cells
-        // (and with the bodies' rotations kept, which shared cells cannot).
-        rotations.reset(poses.len());
-        let mut cached = CachedPoses {
-            poses,
-            cache: rotations,
-        };
+        // The same items in the same order on the calling thread, without shared cells.
         for it in 0..settings.max_iterations {
             let mut all = PassMeasures::default();
             for item in &items {
                 for row in *item {
-                    all.merge(&correct_point(row, settings, &mut cached, true));
+                    all.merge(&correct_point(row, settings, poses, true));
                 }
             }
             if all.judge(it, settings, report) {
