@@ -2,8 +2,11 @@
 //!
 //! Simulates the thesis pile for each seed (builtin warm start, the chosen solver) and writes one
 //! safetensors file per seed, `pile-<seed>.safetensors`, holding for every step with contacts the
-//! input grids `[6, 61, 61]`, the label grids `[2, 61, 61]` (from the step's final impulses) and
-//! the raw bodies and contact points. The format is documented in `models/README.md`.
+//! input grids `[6, 61, 61]`, the label grids `[2, 61, 61]` (from the step's final impulses),
+//! the raw bodies and contact points, and what per-contact models need beside them (format 2):
+//! whether each impulse was carried, the impulses of the step before, separation and relative
+//! velocity, the island, and the contact graph (pairs of contacts sharing a moving body). The
+//! format is documented in `models/README.md`.
 //! Seeds run in parallel (rayon); each file depends only on its seed, so the output is
 //! deterministic. `--shard K/N` keeps the seeds `i` with `i mod N == K`; seeds whose file already
 //! exists and is complete are skipped; files are written to a temporary name and renamed.
@@ -13,6 +16,7 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+use deepcontact_core::math::cross_sv;
 use deepcontact_core::{
     CarriedWarmStart, ContactId, Impulse, PositionSolver, Registry, WarmStart, WarmStartContext,
     WarmStartError, World, WorldSettings,
@@ -26,7 +30,7 @@ use crate::ExperimentError;
 use crate::atomic::write_atomic_with;
 
 /// Version of the training-data format (the `format_version` metadata field).
-pub const FORMAT_VERSION: &str = "1";
+pub const FORMAT_VERSION: &str = "2";
 /// The `format` metadata field.
 pub const FORMAT: &str = "deepcontact-train";
 
@@ -107,7 +111,21 @@ struct StepCapture {
     snap: Option<u64>,
     input: Vec<f32>,
     bodies: Vec<(f32, [f32; 2], [f32; 2], f32)>,
-    warm: Vec<(ContactId, Impulse)>,
+    /// This step's points as the providers saw them, by contact id.
+    warm: Vec<(ContactId, PointCapture)>,
+    /// The warm starts of the step before (`warm_step` − 1's, sorted), by contact id.
+    previous: Vec<(ContactId, PointCapture)>,
+}
+
+/// One contact point as a provider sees it.
+#[derive(Debug, Clone, Copy, Default)]
+struct PointCapture {
+    warm: Impulse,
+    persisted: bool,
+    separation: f32,
+    /// Relative velocity of body B against A at the point, along the normal and the tangent.
+    velocity: [f32; 2],
+    island: i32,
 }
 
 impl WarmStart for StepCapture {
@@ -122,6 +140,14 @@ impl WarmStart for StepCapture {
     ) -> Result<(), WarmStartError> {
         CarriedWarmStart.warm_start(ctx, out)?;
         if self.snap != Some(ctx.step) {
+            // The step before's warm starts (none if it had no contacts).
+            let consecutive = self.snap.is_some_and(|s| s + 1 == ctx.step);
+            std::mem::swap(&mut self.previous, &mut self.warm);
+            if consecutive {
+                self.previous.sort_unstable_by_key(|a| a.0);
+            } else {
+                self.previous.clear();
+            }
             self.snap = Some(ctx.step);
             self.warm.clear();
             if let Some(world) = ctx.world {
@@ -139,13 +165,26 @@ impl WarmStart for StepCapture {
                 }));
             }
         }
-        self.warm.extend(
-            ctx.problem
-                .points
-                .iter()
-                .map(|p| p.id)
-                .zip(out.iter().copied()),
-        );
+        let problem = ctx.problem;
+        for (i, (p, w)) in problem.points.iter().zip(out.iter()).enumerate() {
+            let (a, b) = (
+                &problem.bodies[p.body_a as usize],
+                &problem.bodies[p.body_b as usize],
+            );
+            let va = a.linear_velocity + cross_sv(a.angular_velocity, &p.r_a);
+            let vb = b.linear_velocity + cross_sv(b.angular_velocity, &p.r_b);
+            let dv = vb - va;
+            self.warm.push((
+                p.id,
+                PointCapture {
+                    warm: *w,
+                    persisted: ctx.carried.get(i).is_some_and(Option::is_some),
+                    separation: p.separation as f32,
+                    velocity: [dv.dot(&p.normal) as f32, dv.dot(&p.tangent()) as f32],
+                    island: ctx.island as i32,
+                },
+            ));
+        }
         Ok(())
     }
 }
@@ -166,13 +205,48 @@ struct Columns {
     contact_normal: Vec<f32>,
     contact_warm_start: Vec<f32>,
     contact_impulse: Vec<f32>,
+    contact_persisted: Vec<u8>,
+    contact_previous_impulse: Vec<f32>,
+    contact_separation: Vec<f32>,
+    contact_relative_velocity: Vec<f32>,
+    contact_island: Vec<i32>,
+    edge_offsets: Vec<i64>,
+    contact_edges: Vec<i32>,
 }
 
-fn lookup(sorted: &[(ContactId, Impulse)], id: &ContactId) -> Impulse {
+/// The value of `id` in a list sorted by id, or the default.
+fn lookup<T: Copy + Default>(sorted: &[(ContactId, T)], id: &ContactId) -> T {
     sorted
         .binary_search_by(|(k, _)| k.cmp(id))
         .map(|i| sorted[i].1)
-        .unwrap_or(Impulse::ZERO)
+        .unwrap_or_default()
+}
+
+/// The contact graph of one step's contacts (`bodies`: their body pairs; `moving`: whether
+/// a body can move): every pair `(i, j)`, `i < j`, of contacts sharing a moving body, once,
+/// sorted; `by_body` is scratch.
+fn contact_edges(
+    bodies: &[[i32; 2]],
+    moving: impl Fn(i32) -> bool,
+    by_body: &mut HashMap<i32, Vec<i32>>,
+    edges: &mut Vec<[i32; 2]>,
+) {
+    by_body.clear();
+    for (k, pair) in bodies.iter().enumerate() {
+        for &b in pair {
+            if moving(b) {
+                by_body.entry(b).or_default().push(k as i32);
+            }
+        }
+    }
+    edges.clear();
+    for list in by_body.values() {
+        for (x, &i) in list.iter().enumerate() {
+            edges.extend(list[x + 1..].iter().map(|&j| [i.min(j), i.max(j)]));
+        }
+    }
+    edges.sort_unstable();
+    edges.dedup();
 }
 
 fn simulate_seed(
@@ -200,11 +274,14 @@ fn simulate_seed(
         input: vec![0.0; layout.input_len()],
         bodies: Vec::new(),
         warm: Vec::new(),
+        previous: Vec::new(),
     };
     let mut c = Columns {
         contact_offsets: vec![0],
+        edge_offsets: vec![0],
         ..Columns::default()
     };
+    let (mut by_body, mut edges, mut pairs) = (HashMap::new(), Vec::new(), Vec::new());
     let mut label = vec![0.0f32; layout.output_len()];
     for _ in 0..config.steps {
         let report = world.step(&mut rec, solver.as_mut(), position)?;
@@ -232,8 +309,17 @@ fn simulate_seed(
             c.body_velocity.extend(v);
             c.body_angular_velocity.push(*w);
         }
+        pairs.clear();
         for r in raw {
-            let (w, f) = (lookup(&rec.warm, &r.id), lookup(finals, &r.id));
+            let (point, f) = (lookup(&rec.warm, &r.id), lookup(finals, &r.id));
+            let (w, previous) = (point.warm, lookup(&rec.previous, &r.id).warm);
+            c.contact_persisted.push(u8::from(point.persisted));
+            c.contact_previous_impulse
+                .extend([previous.normal as f32, previous.tangent as f32]);
+            c.contact_separation.push(point.separation);
+            c.contact_relative_velocity.extend(point.velocity);
+            c.contact_island.push(point.island);
+            pairs.push([r.id.body_a as i32, r.id.body_b as i32]);
             c.contact_position
                 .extend([r.point.x as f32, r.point.y as f32]);
             c.contact_bodies
@@ -247,6 +333,11 @@ fn simulate_seed(
         }
         c.contact_offsets
             .push((c.contact_position.len() / 2) as i64);
+        let mass = &c.body_mass;
+        let moving = |b: i32| mass.get(b as usize).is_some_and(|&m| m > 0.0);
+        contact_edges(&pairs, moving, &mut by_body, &mut edges);
+        c.contact_edges.extend(edges.iter().flatten());
+        c.edge_offsets.push((c.contact_edges.len() / 2) as i64);
     }
     Ok(c)
 }
@@ -398,6 +489,48 @@ fn write_seed(
             vec![n, 2],
             f32_bytes(&c.contact_impulse),
         ),
+        (
+            "contact_persisted",
+            Dtype::U8,
+            vec![n],
+            c.contact_persisted.clone(),
+        ),
+        (
+            "contact_previous_impulse",
+            Dtype::F32,
+            vec![n, 2],
+            f32_bytes(&c.contact_previous_impulse),
+        ),
+        (
+            "contact_separation",
+            Dtype::F32,
+            vec![n],
+            f32_bytes(&c.contact_separation),
+        ),
+        (
+            "contact_relative_velocity",
+            Dtype::F32,
+            vec![n, 2],
+            f32_bytes(&c.contact_relative_velocity),
+        ),
+        (
+            "contact_island",
+            Dtype::I32,
+            vec![n],
+            i32_bytes(&c.contact_island),
+        ),
+        (
+            "edge_offsets",
+            Dtype::I64,
+            vec![s + 1],
+            i64_bytes(&c.edge_offsets),
+        ),
+        (
+            "contact_edges",
+            Dtype::I32,
+            vec![c.contact_edges.len() / 2, 2],
+            i32_bytes(&c.contact_edges),
+        ),
     ];
     let views = owned
         .iter()
@@ -520,5 +653,91 @@ mod tests {
         assert_eq!(parse_shard("1/4").unwrap(), (1, 4));
         assert!(parse_shard("4/4").is_err());
         assert!(parse_shard("1").is_err());
+    }
+
+    /// Contacts 0 and 1 share moving body 1 twice over (bodies 1 and 2): one edge; contact 2
+    /// touches body 1 too; contact 3 only the static body 0 with contact 0: no edge there.
+    #[test]
+    fn contact_edges_join_contacts_sharing_a_moving_body_once() {
+        let bodies = [[0, 1], [1, 2], [2, 1], [0, 3]];
+        let (mut by_body, mut edges) = (HashMap::new(), Vec::new());
+        contact_edges(&bodies, |b| b != 0, &mut by_body, &mut edges);
+        assert_eq!(edges, vec![[0, 1], [0, 2], [1, 2]]);
+    }
+
+    /// A generated file holds the per-contact tensors with consistent shapes: flags 0/1,
+    /// edges inside their step's contacts and joining contacts that share a moving body,
+    /// previous impulses present exactly for contacts whose impulse was carried.
+    #[test]
+    fn generated_files_carry_the_contact_graph_and_the_step_before() {
+        let out = std::env::temp_dir().join(format!("dc-generate-{}", std::process::id()));
+        let config = GenerateConfig {
+            seeds: vec![3],
+            out: out.clone(),
+            steps: 70,
+            bodies: 100,
+            threads: 1,
+            progress: false,
+            ..GenerateConfig::default()
+        };
+        run_generate(&config, &crate::full_registry()).unwrap();
+        let bytes = std::fs::read(seed_file(&out, 3)).unwrap();
+        let file = safetensors::SafeTensors::deserialize(&bytes).unwrap();
+        let f32s = |name: &str| -> Vec<f32> {
+            let t = file.tensor(name).unwrap();
+            t.data()
+                .chunks(4)
+                .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
+                .collect()
+        };
+        let i32s = |name: &str| -> Vec<i32> {
+            let t = file.tensor(name).unwrap();
+            t.data()
+                .chunks(4)
+                .map(|b| i32::from_le_bytes(b.try_into().unwrap()))
+                .collect()
+        };
+        let i64s = |name: &str| -> Vec<i64> {
+            let t = file.tensor(name).unwrap();
+            t.data()
+                .chunks(8)
+                .map(|b| i64::from_le_bytes(b.try_into().unwrap()))
+                .collect()
+        };
+        let (offsets, edge_offsets) = (i64s("contact_offsets"), i64s("edge_offsets"));
+        let n = *offsets.last().unwrap() as usize;
+        assert!(n > 20, "only {n} contacts");
+        assert_eq!(edge_offsets.len(), offsets.len());
+        let persisted = file.tensor("contact_persisted").unwrap().data().to_vec();
+        assert_eq!(persisted.len(), n);
+        assert!(persisted.iter().all(|&p| p <= 1));
+        assert!(persisted.iter().filter(|&&p| p == 1).count() > n / 2);
+        let (warm, previous) = (f32s("contact_warm_start"), f32s("contact_previous_impulse"));
+        assert_eq!(previous.len(), 2 * n);
+        for k in 0..n {
+            if persisted[k] == 0 {
+                // A new contact starts from zero and had no impulse the step before.
+                assert_eq!((warm[2 * k], previous[2 * k]), (0.0, 0.0), "contact {k}");
+            }
+        }
+        assert_eq!(f32s("contact_separation").len(), n);
+        assert_eq!(f32s("contact_relative_velocity").len(), 2 * n);
+        assert_eq!(i32s("contact_island").len(), n);
+        let (bodies, edges, mass) = (
+            i32s("contact_bodies"),
+            i32s("contact_edges"),
+            f32s("body_mass"),
+        );
+        assert!(!edges.is_empty());
+        for s in 0..offsets.len() - 1 {
+            let (c0, c1) = (offsets[s] as usize, offsets[s + 1] as usize);
+            for e in edge_offsets[s] as usize..edge_offsets[s + 1] as usize {
+                let (i, j) = (edges[2 * e] as usize, edges[2 * e + 1] as usize);
+                assert!(i < j && c0 + j < c1, "step {s}: edge ({i}, {j})");
+                let (a, b) = (&bodies[2 * (c0 + i)..][..2], &bodies[2 * (c0 + j)..][..2]);
+                assert!(a.iter().any(|x| b.contains(x) && mass[*x as usize] > 0.0));
+            }
+        }
+        std::fs::remove_dir_all(&out).ok();
     }
 }

@@ -9,7 +9,9 @@ import numpy as np
 from safetensors import safe_open
 
 FORMAT = "deepcontact-train"
-FORMAT_VERSION = "1"
+# Format 2 added per-contact tensors (models/README.md); the grids this loader reads are the
+# same in both.
+FORMAT_VERSIONS = ("1", "2")
 
 
 def seed_file(data_dir: Path, seed: int) -> Path:
@@ -20,8 +22,8 @@ def read_header(path: Path) -> dict:
     """The string metadata of one file, with the JSON-valued fields decoded."""
     with safe_open(str(path), framework="numpy") as f:
         meta = dict(f.metadata() or {})
-    if meta.get("format") != FORMAT or meta.get("format_version") != FORMAT_VERSION:
-        raise ValueError(f"{path}: not a {FORMAT} v{FORMAT_VERSION} file")
+    if meta.get("format") != FORMAT or meta.get("format_version") not in FORMAT_VERSIONS:
+        raise ValueError(f"{path}: not a {FORMAT} file of version {' or '.join(FORMAT_VERSIONS)}")
     for key in ("grid_layout", "input_channels", "output_channels", "solver"):
         meta[key] = json.loads(meta[key])
     return meta
