@@ -104,7 +104,8 @@ fn compare_writes_every_file_and_ignores_the_thread_count() {
             "tail",
             "krylov",
             "best",
-            "presolve"
+            "presolve",
+            "sor"
         ]
     );
     assert_same_numbers(&one, &two);

@@ -34,7 +34,15 @@ pub const FIGURE_GROUPS: [(&str, &[&str]); 6] = [
     ("iterations_cnn", &["pressure", "peak"]),
     (
         "iterations_contenders",
-        &["extrapolate", "shock", "tail", "krylov", "best", "presolve"],
+        &[
+            "extrapolate",
+            "shock",
+            "tail",
+            "krylov",
+            "best",
+            "presolve",
+            "sor",
+        ],
     ),
 ];
 

@@ -16,6 +16,7 @@
 //! | `krylov` | [`KrylovWarmStart`] | carried impulses plus a few conjugate-gradient steps on their active set |
 //! | `shock` | [`ShockWarmStart`] | normal loads propagated top-down, blended with the carried impulses |
 //! | `best` | [`BestOfWarmStart`] | the candidate start with the smallest one-sweep residual |
+//! | `sor` | [`RelaxedWarmStart`] | carried impulses refined by over-relaxed Gauss-Seidel sweeps |
 //! | `presolve` | [`PresolveWarmStart`] | carried impulses refined by a few iterations of another solver (`newton`) |
 //! | `copy2`, `copy0` | [`Rounded`]`<`[`OracleWarmStart`]`>` | `copy` rounded to 2 / 0 decimals |
 //!
@@ -32,6 +33,7 @@ mod oracle;
 mod presolve;
 mod random;
 mod registry;
+mod relaxed;
 mod rounded;
 mod rows;
 mod shock;
@@ -45,6 +47,7 @@ pub use oracle::{OracleConfig, OracleOrder, OracleWarmStart};
 pub use presolve::{PresolveConfig, PresolveWarmStart};
 pub use random::{RandomConfig, RandomWarmStart};
 pub use registry::register;
+pub use relaxed::{RelaxedConfig, RelaxedWarmStart};
 pub use rounded::Rounded;
 pub use shock::ShockWarmStart;
 pub use tail::{TailConfig, TailWarmStart};

@@ -6,7 +6,8 @@ use deepcontact_core::{CarriedWarmStart, Impulse, ResidualNorm, ZeroWarmStart};
 use crate::{
     BestOfWarmStart, ConstantWarmStart, ExtrapolatedWarmStart, KrylovConfig, KrylovWarmStart,
     OracleConfig, OracleOrder, OracleWarmStart, PresolveConfig, PresolveWarmStart, RandomConfig,
-    RandomWarmStart, Rounded, ShockWarmStart, TailConfig, TailWarmStart,
+    RandomWarmStart, RelaxedConfig, RelaxedWarmStart, Rounded, ShockWarmStart, TailConfig,
+    TailWarmStart,
 };
 
 /// Registers `none`, `builtin`, `random`, `bad`, `copy`, `copy2` and `copy0` (the oracles
@@ -160,6 +161,20 @@ fn register_contenders(registry: &mut Registry) {
             }
             let solver = r.build_solver(&solver)?;
             Ok(Box::new(PresolveWarmStart::new(solver, config)?))
+        },
+    );
+    registry.register_provider(
+        "sor",
+        "carried impulses refined by over-relaxed Gauss-Seidel sweeps (PGS on effective masses scaled by omega); \
+         omega=1.7, sweeps=300, tolerance=1e-4 (tuned on seeds 100–109)",
+        |p, _| {
+            let d = RelaxedConfig::default();
+            let config = RelaxedConfig {
+                omega: p.f64("omega", d.omega)?,
+                sweeps: u32_param(p, "sweeps", d.sweeps)?,
+                tolerance: p.f64("tolerance", d.tolerance)?,
+            };
+            Ok(Box::new(RelaxedWarmStart::new(config)?))
         },
     );
     registry.register_provider(

@@ -1,0 +1,219 @@
+//! The `sor` provider: carried impulses refined by over-relaxed Gauss-Seidel sweeps.
+//!
+//! PGS is Gauss-Seidel; what it is slow at is the slow, load-redistributing part of the
+//! start's error (docs/RESEARCH.md), whose modes it shrinks by `1 − O(μ)` per sweep. Successive
+//! over-relaxation moves each row `ω` times as far as Gauss-Seidel would,
+//! `λ ← proj(λ − ω m (v − b))`, which shrinks smooth error modes at a rate close to
+//! `1 − O(√μ)` for a good `ω` ∈ (1, 2). Scaling a row's effective mass `m` by `ω` *is* that
+//! update, so the provider runs the ordinary PGS solver (colours, lanes) on a copy of the
+//! problem whose effective masses are scaled by `ω`, for at most `sweeps` sweeps from the
+//! carried impulses, and hands the result to the world's (unrelaxed) PGS, which then only
+//! has to settle what over-relaxation overshoots. Its sweeps are provider time.
+//!
+//! Two-point manifolds keep Box2D's block solver for their normals, which is not relaxed
+//! (only their friction rows are); the thesis pile has none.
+
+use deepcontact_core::{
+    ContactProblem, Impulse, Real, SolveReport, SolverSettings, SpecError, Velocity,
+    VelocitySolver, WarmStart, WarmStartContext, WarmStartError,
+};
+use deepcontact_pgs::PgsSolver;
+
+/// Parameters of [`RelaxedWarmStart`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RelaxedConfig {
+    /// Relaxation factor ω, in [1, 2) (default 1.7, tuned on seeds 100–109; 1 is plain PGS).
+    pub omega: Real,
+    /// Most over-relaxed sweeps per island (default 300, tuned on seeds 100–109; in
+    /// 1..=[`RelaxedWarmStart::MAX_SWEEPS`]).
+    pub sweeps: u32,
+    /// Stop the sweeps once the ∞-norm of an iteration's impulse change is below this
+    /// (N·s; default 1e-4, the world's own tolerance; ≥ 0; 0 runs every sweep).
+    pub tolerance: Real,
+}
+
+impl Default for RelaxedConfig {
+    fn default() -> Self {
+        Self {
+            omega: 1.7,
+            sweeps: 300,
+            tolerance: 1e-4,
+        }
+    }
+}
+
+/// Carried impulses (zeros for new points) refined by over-relaxed Gauss-Seidel sweeps (see
+/// the module docs). Buffers are kept between calls.
+///
+/// ```
+/// use deepcontact_core::WarmStart;
+/// use deepcontact_warmstart::{RelaxedConfig, RelaxedWarmStart};
+///
+/// let provider = RelaxedWarmStart::new(RelaxedConfig::default()).unwrap();
+/// assert_eq!(provider.name(), "sor");
+/// ```
+#[derive(Debug)]
+pub struct RelaxedWarmStart {
+    config: RelaxedConfig,
+    settings: SolverSettings,
+    solver: PgsSolver,
+    /// The island's problem with its effective masses scaled by ω.
+    relaxed: ContactProblem,
+    velocities: Vec<Velocity>,
+    report: SolveReport,
+    /// Sweeps run, in all and per island; the largest of each step (the slowest island's,
+    /// comparable with the world's iterations), summed, and the step being counted.
+    sweeps: u64,
+    islands: u64,
+    step_max_sum: u64,
+    steps: u64,
+    current: Option<(u64, u32)>,
+}
+
+impl RelaxedWarmStart {
+    /// Most sweeps per island.
+    pub const MAX_SWEEPS: u32 = 100_000;
+
+    /// A provider under `config` (validated: ω in [1, 2), 1 to `MAX_SWEEPS` sweeps, a
+    /// finite tolerance ≥ 0).
+    pub fn new(config: RelaxedConfig) -> Result<Self, SpecError> {
+        let invalid = |param: &str, value: String, reason: &str| SpecError::InvalidParameter {
+            spec: "sor".into(),
+            param: param.into(),
+            value,
+            reason: reason.into(),
+        };
+        if !(1.0..2.0).contains(&config.omega) {
+            return Err(invalid(
+                "omega",
+                config.omega.to_string(),
+                "must be in [1, 2)",
+            ));
+        }
+        if !(1..=Self::MAX_SWEEPS).contains(&config.sweeps) {
+            return Err(invalid(
+                "sweeps",
+                config.sweeps.to_string(),
+                "must be in 1..=100000",
+            ));
+        }
+        if !(config.tolerance.is_finite() && config.tolerance >= 0.0) {
+            return Err(invalid(
+                "tolerance",
+                config.tolerance.to_string(),
+                "must be finite and >= 0",
+            ));
+        }
+        Ok(Self {
+            config,
+            settings: SolverSettings {
+                max_iterations: config.sweeps,
+                tolerance: config.tolerance,
+                ..SolverSettings::default()
+            },
+            solver: PgsSolver::new(),
+            relaxed: ContactProblem::new(),
+            velocities: Vec::new(),
+            report: SolveReport::default(),
+            sweeps: 0,
+            islands: 0,
+            step_max_sum: 0,
+            steps: 0,
+            current: None,
+        })
+    }
+
+    /// Counts `sweeps` run on an island of `step`.
+    fn count(&mut self, step: u64, sweeps: u32) {
+        self.sweeps += u64::from(sweeps);
+        self.islands += 1;
+        match &mut self.current {
+            Some((s, max)) if *s == step => *max = (*max).max(sweeps),
+            current => {
+                if let Some((_, max)) = current.take() {
+                    self.step_max_sum += u64::from(max);
+                    self.steps += 1;
+                }
+                *current = Some((step, sweeps));
+            }
+        }
+    }
+
+    /// The config.
+    pub fn config(&self) -> &RelaxedConfig {
+        &self.config
+    }
+
+    /// The report of the last island's sweeps (their count is `iterations`).
+    pub fn last_report(&self) -> &SolveReport {
+        &self.report
+    }
+}
+
+impl WarmStart for RelaxedWarmStart {
+    fn name(&self) -> &str {
+        "sor"
+    }
+
+    fn warm_start(
+        &mut self,
+        ctx: &WarmStartContext<'_>,
+        out: &mut [Impulse],
+    ) -> Result<(), WarmStartError> {
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = ctx.carried_or_zero(i);
+        }
+        if out.is_empty() {
+            return Ok(());
+        }
+        let problem = ctx.problem;
+        let omega = self.config.omega;
+        let r = &mut self.relaxed;
+        r.clear();
+        r.bodies.extend_from_slice(&problem.bodies);
+        r.points.extend(problem.points.iter().map(|p| {
+            let mut p = *p;
+            p.normal_mass *= omega;
+            p.tangent_mass *= omega;
+            p
+        }));
+        r.manifolds.extend_from_slice(&problem.manifolds);
+        self.velocities.clear();
+        self.velocities
+            .resize(problem.bodies.len(), Velocity::default());
+        self.report.clear();
+        self.solver
+            .solve(
+                &self.relaxed,
+                &self.settings,
+                out,
+                &mut self.velocities,
+                &mut self.report,
+            )
+            .map_err(|e| WarmStartError::Provider(format!("over-relaxed sweeps failed: {e}")))?;
+        self.count(ctx.step, self.report.iterations);
+        Ok(())
+    }
+
+    fn reset(&mut self) {
+        (self.sweeps, self.islands, self.step_max_sum, self.steps) = (0, 0, 0, 0);
+        self.current = None;
+    }
+
+    /// `mean_sweeps` per island, and `mean_sweeps_slowest_island`: the mean over steps of
+    /// the largest island count of a step — the provider's sweeps beside the world's
+    /// iterations (which the comparison counts on a step's slowest island), so that the total
+    /// work of a step is both.
+    fn diagnostics(&self) -> Vec<(String, Real)> {
+        let (mut sum, mut steps) = (self.step_max_sum, self.steps);
+        if let Some((_, max)) = self.current {
+            sum += u64::from(max);
+            steps += 1;
+        }
+        let mean = |a: u64, b: u64| if b > 0 { a as Real / b as Real } else { 0.0 };
+        vec![
+            ("mean_sweeps".into(), mean(self.sweeps, self.islands)),
+            ("mean_sweeps_slowest_island".into(), mean(sum, steps)),
+        ]
+    }
+}
