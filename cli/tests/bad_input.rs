@@ -118,6 +118,16 @@ fn cases(dir: &Path) -> Vec<Case> {
             "abc",
         ),
         case(
+            "over-relaxation factor out of range",
+            &sim(&["--warm-start", "sor:omega=2"]),
+            "[1, 2)",
+        ),
+        case(
+            "Newton-only presolve parameter with another solver",
+            &sim(&["--warm-start", "presolve:solver=pgs,backtracks=3"]),
+            "need solver=newton",
+        ),
+        case(
             "non-finite parameter",
             &sim(&["--warm-start", "bad:value=nan"]),
             "value",

@@ -152,12 +152,19 @@ fn register_contenders(registry: &mut Registry) {
                 tolerance: p.f64("tolerance", d.tolerance)?,
             };
             let mut solver = p.string("solver").unwrap_or("newton").to_string();
+            let newton_only = p.string("on_failed_step").is_some() || p.string("backtracks").is_some();
+            let stop = p.choice("on_failed_step", &["stop", "retry"])? == Some("stop");
+            let backtracks = p.u64("backtracks", 8)?;
             if solver == "newton" {
-                let stop = p.choice("on_failed_step", &["stop", "retry"])? == Some("stop");
-                let backtracks = p.u64("backtracks", 8)?;
                 solver = format!(
                     "newton:stop_on_failed_step={stop},max_backtracks={backtracks}"
                 );
+            } else if newton_only {
+                return Err(p.invalid(
+                    "solver",
+                    &solver,
+                    "on_failed_step and backtracks need solver=newton",
+                ));
             }
             let solver = r.build_solver(&solver)?;
             Ok(Box::new(PresolveWarmStart::new(solver, config)?))
