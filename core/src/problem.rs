@@ -375,6 +375,9 @@ impl ContactProblem {
 
     /// Checks indices, finiteness and ranges; solvers call this on foreign input.
     pub fn validate(&self) -> Result<(), CoreError> {
+        if self.is_valid() {
+            return Ok(());
+        }
         let nb = self.bodies.len() as u32;
         for (i, b) in self.bodies.iter().enumerate() {
             let vals = [
@@ -444,6 +447,56 @@ impl ContactProblem {
             }
         }
         Ok(())
+    }
+
+    /// The checks of [`Self::validate`] without its early exits (one branch-free pass over
+    /// the data; every solve of a valid problem takes this path): whether it would return `Ok`.
+    fn is_valid(&self) -> bool {
+        let finite = |v: Real| v.is_finite();
+        let mut ok = true;
+        for b in &self.bodies {
+            ok &= finite(b.position.x)
+                & finite(b.position.y)
+                & finite(b.angle)
+                & finite(b.linear_velocity.x)
+                & finite(b.linear_velocity.y)
+                & finite(b.angular_velocity)
+                & finite(b.inv_mass)
+                & finite(b.inv_inertia)
+                & (b.inv_mass >= 0.0)
+                & (b.inv_inertia >= 0.0);
+        }
+        let mut covered = 0u32;
+        for &(s, e) in &self.manifolds {
+            ok &= (s == covered)
+                & (e >= s)
+                & (e.wrapping_sub(s) <= 2)
+                & (e as usize <= self.points.len());
+            covered = e;
+        }
+        ok &= covered as usize == self.points.len();
+        let nb = self.bodies.len() as u32;
+        for p in &self.points {
+            ok &= (p.body_a < nb)
+                & (p.body_b < nb)
+                & (p.body_a != p.body_b)
+                & finite(p.normal.x)
+                & finite(p.normal.y)
+                & finite(p.r_a.x)
+                & finite(p.r_a.y)
+                & finite(p.r_b.x)
+                & finite(p.r_b.y)
+                & finite(p.separation)
+                & finite(p.friction)
+                & finite(p.velocity_bias)
+                & finite(p.normal_mass)
+                & finite(p.tangent_mass)
+                & (p.friction >= 0.0)
+                & (p.normal_mass >= 0.0)
+                & (p.tangent_mass >= 0.0)
+                & ((p.normal.norm() - 1.0).abs() <= 1e-3);
+        }
+        ok
     }
 }
 
@@ -525,5 +578,36 @@ mod tests {
         // Closing at 0.1 m/s above the 0.05 m/s threshold: bias = -e vn = 0.05.
         assert!((point.velocity_bias - 0.05).abs() < 1e-12);
         assert_eq!(p.bodies[1].world_index, ProblemBody::NO_WORLD);
+    }
+
+    #[test]
+    fn the_branch_free_check_refuses_every_problem_validate_refuses() {
+        let mut valid = two_bodies();
+        valid.begin_manifold();
+        valid.add_point(&up()).unwrap();
+        valid.add_point(&up()).unwrap();
+        assert!(valid.is_valid() && valid.validate().is_ok());
+        type Corrupt = fn(&mut ContactProblem);
+        let corruptions: [(Corrupt, &str); 12] = [
+            (|p| p.bodies[1].angle = Real::NAN, "body 1"),
+            (|p| p.bodies[1].inv_mass = -1.0, "body 1"),
+            (|p| p.bodies[0].inv_inertia = -0.5, "body 0"),
+            (|p| p.manifolds[0] = (1, 2), "manifold 0"),
+            (|p| p.manifolds[0] = (0, 3), "manifold 0"),
+            (|p| p.manifolds[0] = (0, 1), "cover 1 of 2"),
+            (|p| p.points[0].body_b = 2, "point 0"),
+            (|p| p.points[1].body_a = 1, "point 1"),
+            (|p| p.points[1].r_b.y = Real::INFINITY, "point 1"),
+            (|p| p.points[0].tangent_mass = -1.0, "point 0"),
+            (|p| p.points[1].normal = Vector::new(0.0, 1.01), "point 1"),
+            (|p| p.points[0].velocity_bias = Real::NAN, "point 0"),
+        ];
+        for (corrupt, says) in corruptions {
+            let mut p = valid.clone();
+            corrupt(&mut p);
+            assert!(!p.is_valid(), "{says}");
+            let err = p.validate().unwrap_err().to_string();
+            assert!(err.contains(says), "{err}");
+        }
     }
 }

@@ -127,6 +127,11 @@ pub const LANES: usize = 4;
 pub(crate) struct Batch {
     a: [u32; LANES],
     b: [u32; LANES],
+    /// Where each lane's new velocity of `a` (of `b`) is stored: the body itself when it is
+    /// movable, else a sink slot that nothing reads (so the scatter needs no branch; an
+    /// immovable body is never written, and padding lanes write the sink too).
+    wa: [u32; LANES],
+    wb: [u32; LANES],
     /// Row of each lane in `rows` (`u32::MAX` for padding).
     row: [u32; LANES],
     nx: [Real; LANES],
@@ -410,8 +415,11 @@ impl PgsSolver {
     /// in `manifolds` (moved behind the batched ones, which are dropped from it). The
     /// overflow colour (64) may share bodies and stays one at a time, in order.
     fn batch(&mut self, counts: &[u32; 65]) {
+        // The dummy body the padding lanes read (always zero), then the sink the immovable
+        // and padding lanes write (never read; the chunked plan's threads skip it).
         let dummy = self.vel.len() as u32;
-        self.vel.push(Vel::default());
+        let sink = dummy + 1;
+        self.vel.extend([Vel::default(); 2]);
         self.scratch.clear();
         let mut start = 0usize;
         for (colour, &count) in counts.iter().enumerate() {
@@ -432,6 +440,8 @@ impl PgsSolver {
                     self.batches.push(Batch {
                         a: [dummy; LANES],
                         b: [dummy; LANES],
+                        wa: [sink; LANES],
+                        wb: [sink; LANES],
                         row: [u32::MAX; LANES],
                         ..Batch::default()
                     });
@@ -441,6 +451,8 @@ impl PgsSolver {
                 let r = &self.rows[m.start as usize];
                 batch.a[lane] = m.a;
                 batch.b[lane] = m.b;
+                batch.wa[lane] = if movable(m.ma, m.ia) { m.a } else { sink };
+                batch.wb[lane] = if movable(m.mb, m.ib) { m.b } else { sink };
                 batch.row[lane] = m.start;
                 batch.nx[lane] = r.nx;
                 batch.ny[lane] = r.ny;
@@ -773,7 +785,7 @@ pub(crate) fn sweep_manifold<const CONTACT: bool, V: Velocities + ?Sized>(
 /// friction row and the normal row of every lane with exactly the arithmetic of
 /// [`sweep_manifold`] (so each lane's result is bit-identical to it), scatter the movable
 /// bodies back. The lanes' bodies are distinct (one colour), except immovable ones, which
-/// are read but never written.
+/// are read but never written (their lanes store into the sink slot instead).
 #[inline(always)]
 pub(crate) fn sweep_batch<const CONTACT: bool, V: Velocities + ?Sized>(
     b: &mut Batch,
@@ -828,27 +840,24 @@ pub(crate) fn sweep_batch<const CONTACT: bool, V: Velocities + ?Sized>(
             lanes.contact_sq[i] = lanes.contact_sq[i].max(d * d + t_pos[i] * t_pos[i]);
         }
     }
+    // Movable bodies back; immovable and padding lanes into the sink ([`Batch::wa`]).
     for i in 0..LANES {
-        if movable(b.ma[i], b.ia[i]) {
-            vel.set(
-                b.a[i],
-                Vel {
-                    vx: avx[i],
-                    vy: avy[i],
-                    w: aw[i],
-                },
-            );
-        }
-        if movable(b.mb[i], b.ib[i]) {
-            vel.set(
-                b.b[i],
-                Vel {
-                    vx: bvx[i],
-                    vy: bvy[i],
-                    w: bw[i],
-                },
-            );
-        }
+        vel.set(
+            b.wa[i],
+            Vel {
+                vx: avx[i],
+                vy: avy[i],
+                w: aw[i],
+            },
+        );
+        vel.set(
+            b.wb[i],
+            Vel {
+                vx: bvx[i],
+                vy: bvy[i],
+                w: bw[i],
+            },
+        );
     }
 }
 

@@ -36,7 +36,9 @@ pub(crate) struct Sweepable<'a> {
     pub(crate) vel: &'a mut [Vel],
 }
 
-/// The shared velocities as a sweep sees them.
+/// The shared velocities as a sweep sees them. The last cell is the batches' sink
+/// ([`Batch`]'s `wa`, `wb`): nothing reads it, so stores to it are dropped (threads would
+/// otherwise all write that one cache line).
 struct Shared<'a>(&'a [Cell3]);
 
 impl Velocities for Shared<'_> {
@@ -48,7 +50,9 @@ impl Velocities for Shared<'_> {
 
     #[inline(always)]
     fn set(&mut self, i: u32, v: Vel) {
-        self.0[i as usize].store([v.vx, v.vy, v.w]);
+        if i as usize + 1 < self.0.len() {
+            self.0[i as usize].store([v.vx, v.vy, v.w]);
+        }
     }
 }
 
