@@ -10,8 +10,12 @@
 //! carried impulses, and hands the result to the world's (unrelaxed) PGS, which then only
 //! has to settle what over-relaxation overshoots. Its sweeps are provider time.
 //!
-//! Two-point manifolds keep Box2D's block solver for their normals, which is not relaxed
-//! (only their friction rows are); the thesis pile has none.
+//! Only single-point manifolds are relaxed. A two-point manifold (a box face) keeps its
+//! effective masses: its normals go through Box2D's block solver, which the scaling would not
+//! reach, and relaxing its friction rows alone made a box pyramid's first step diverge to
+//! 1e74 N·s (`sor_keeps_a_box_pyramid_standing`). As a guard, sweeps whose last impulse
+//! change is larger than their first (diverging) are dropped: the carried impulses are
+//! returned instead and the drop is counted (`diagnostics`: `dropped`).
 
 use deepcontact_core::{
     ContactProblem, Impulse, Real, SolveReport, SolverSettings, SpecError, Velocity,
@@ -68,6 +72,8 @@ pub struct RelaxedWarmStart {
     step_max_sum: u64,
     steps: u64,
     current: Option<(u64, u32)>,
+    /// Islands whose sweeps diverged and were dropped.
+    dropped: u64,
 }
 
 impl RelaxedWarmStart {
@@ -120,6 +126,7 @@ impl RelaxedWarmStart {
             step_max_sum: 0,
             steps: 0,
             current: None,
+            dropped: 0,
         })
     }
 
@@ -171,12 +178,14 @@ impl WarmStart for RelaxedWarmStart {
         let r = &mut self.relaxed;
         r.clear();
         r.bodies.extend_from_slice(&problem.bodies);
-        r.points.extend(problem.points.iter().map(|p| {
-            let mut p = *p;
-            p.normal_mass *= omega;
-            p.tangent_mass *= omega;
-            p
-        }));
+        r.points.extend_from_slice(&problem.points);
+        for &(start, end) in &problem.manifolds {
+            if end == start + 1 {
+                let p = &mut r.points[start as usize];
+                p.normal_mass *= omega;
+                p.tangent_mass *= omega;
+            }
+        }
         r.manifolds.extend_from_slice(&problem.manifolds);
         self.velocities.clear();
         self.velocities
@@ -192,18 +201,36 @@ impl WarmStart for RelaxedWarmStart {
             )
             .map_err(|e| WarmStartError::Provider(format!("over-relaxed sweeps failed: {e}")))?;
         self.count(ctx.step, self.report.iterations);
+        let changes = &self.report.residual_inf;
+        let diverged = match (changes.first(), changes.last()) {
+            // Growing changes, or a NaN among them.
+            (Some(first), Some(last)) => last > first || last.is_nan() || first.is_nan(),
+            _ => false,
+        };
+        if diverged
+            || out
+                .iter()
+                .any(|i| !(i.normal.is_finite() && i.tangent.is_finite()))
+        {
+            self.dropped += 1;
+            for (i, o) in out.iter_mut().enumerate() {
+                *o = ctx.carried_or_zero(i);
+            }
+        }
         Ok(())
     }
 
     fn reset(&mut self) {
         (self.sweeps, self.islands, self.step_max_sum, self.steps) = (0, 0, 0, 0);
+        self.dropped = 0;
         self.current = None;
     }
 
-    /// `mean_sweeps` per island, and `mean_sweeps_slowest_island`: the mean over steps of
-    /// the largest island count of a step — the provider's sweeps beside the world's
-    /// iterations (which the comparison counts on a step's slowest island), so that the total
-    /// work of a step is both.
+    /// `mean_sweeps` per island, `mean_sweeps_slowest_island` (the mean over steps of the
+    /// largest island count of a step — the provider's sweeps beside the world's iterations,
+    /// which the comparison counts on a step's slowest island, so that the total work of a
+    /// step is both) and `dropped` (islands whose diverging sweeps were replaced by the
+    /// carried impulses).
     fn diagnostics(&self) -> Vec<(String, Real)> {
         let (mut sum, mut steps) = (self.step_max_sum, self.steps);
         if let Some((_, max)) = self.current {
@@ -214,6 +241,7 @@ impl WarmStart for RelaxedWarmStart {
         vec![
             ("mean_sweeps".into(), mean(self.sweeps, self.islands)),
             ("mean_sweeps_slowest_island".into(), mean(sum, steps)),
+            ("dropped".into(), self.dropped as Real),
         ]
     }
 }

@@ -454,3 +454,28 @@ fn over_relaxed_sweeps_cut_the_world_iterations_and_the_total() {
         assert!(RelaxedWarmStart::new(config).is_err(), "{config:?}");
     }
 }
+
+/// Relaxing the friction rows of box faces (two-point manifolds, whose normals go through the
+/// block solver) made the first step of a box pyramid diverge to 1e74 N·s and the pyramid
+/// fly apart. Only single-point manifolds are relaxed now, and diverging sweeps are dropped.
+#[test]
+fn regression_sor_blew_up_a_box_pyramid() {
+    use deepcontact_core::{WorldSettings, scene};
+    use deepcontact_pgs::PgsPositionSolver;
+    let mut world = scene::pyramid(10).build(WorldSettings::default()).unwrap();
+    let mut sor = RelaxedWarmStart::new(RelaxedConfig::default()).unwrap();
+    let (mut solver, mut position) = (PgsSolver::new(), PgsPositionSolver::new());
+    let mut contacts = 0;
+    for _ in 0..40 {
+        let report = world.step(&mut sor, &mut solver, &mut position).unwrap();
+        assert!(
+            report.natural_residual < 1e-2,
+            "step {}: natural residual {:e}",
+            report.step,
+            report.natural_residual
+        );
+        contacts = report.contacts;
+    }
+    // Still a pyramid resting on its 55 box faces and the ground (not scattered bodies).
+    assert!(contacts > 150, "{contacts} contacts left");
+}
