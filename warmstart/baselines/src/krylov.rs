@@ -13,7 +13,8 @@
 //! wrong.
 
 use deepcontact_core::{
-    ContactProblem, Impulse, Real, SpecError, Velocity, WarmStart, WarmStartContext, WarmStartError,
+    CarriedWarmStart, ContactProblem, Impulse, Real, SpecError, Velocity, WarmStart,
+    WarmStartContext, WarmStartError,
 };
 
 use crate::rows::{apply_jt, in_cone, row, row_velocity, velocities_after};
@@ -211,9 +212,7 @@ impl WarmStart for KrylovWarmStart {
         ctx: &WarmStartContext<'_>,
         out: &mut [Impulse],
     ) -> Result<(), WarmStartError> {
-        for (i, o) in out.iter_mut().enumerate() {
-            *o = ctx.carried_or_zero(i);
-        }
+        CarriedWarmStart.warm_start(ctx, out)?;
         if out.is_empty() {
             return Ok(());
         }

@@ -28,6 +28,7 @@ mod best;
 mod by_contact;
 mod constant;
 mod extrapolate;
+mod inner;
 mod krylov;
 mod oracle;
 mod presolve;

@@ -10,9 +10,11 @@
 //! provider time.
 
 use deepcontact_core::{
-    Impulse, Real, SolveReport, SolverSettings, SpecError, Velocity, VelocitySolver, WarmStart,
+    CarriedWarmStart, Impulse, Real, SolveReport, SpecError, VelocitySolver, WarmStart,
     WarmStartContext, WarmStartError,
 };
+
+use crate::inner::InnerSolve;
 
 /// Parameters of [`PresolveWarmStart`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -53,9 +55,7 @@ pub struct PresolveWarmStart {
     /// unchanged contact graph).
     forks: Vec<Box<dyn VelocitySolver>>,
     config: PresolveConfig,
-    settings: SolverSettings,
-    velocities: Vec<Velocity>,
-    report: SolveReport,
+    inner: InnerSolve,
 }
 
 impl std::fmt::Debug for PresolveWarmStart {
@@ -74,38 +74,18 @@ impl PresolveWarmStart {
     /// A provider refining with `solver` under `config` (validated: 1 to `MAX_ITERATIONS`
     /// iterations, a finite tolerance ≥ 0).
     pub fn new(solver: Box<dyn VelocitySolver>, config: PresolveConfig) -> Result<Self, SpecError> {
-        let invalid = |param: &str, value: String, reason: &str| SpecError::InvalidParameter {
-            spec: "presolve".into(),
-            param: param.into(),
-            value,
-            reason: reason.into(),
-        };
-        if !(1..=Self::MAX_ITERATIONS).contains(&config.iterations) {
-            return Err(invalid(
-                "iterations",
-                config.iterations.to_string(),
-                "must be in 1..=10000",
-            ));
-        }
-        if !(config.tolerance.is_finite() && config.tolerance >= 0.0) {
-            return Err(invalid(
-                "tolerance",
-                config.tolerance.to_string(),
-                "must be finite and >= 0",
-            ));
-        }
-        let settings = SolverSettings {
-            max_iterations: config.iterations,
-            tolerance: config.tolerance,
-            ..SolverSettings::default()
-        };
+        let inner = InnerSolve::new(
+            "presolve",
+            "iterations",
+            config.iterations,
+            Self::MAX_ITERATIONS,
+            config.tolerance,
+        )?;
         Ok(Self {
             solver,
             forks: Vec::new(),
             config,
-            settings,
-            velocities: Vec::new(),
-            report: SolveReport::default(),
+            inner,
         })
     }
 
@@ -116,7 +96,7 @@ impl PresolveWarmStart {
 
     /// The report of the last inner solve.
     pub fn last_report(&self) -> &SolveReport {
-        &self.report
+        self.inner.report()
     }
 }
 
@@ -130,39 +110,30 @@ impl WarmStart for PresolveWarmStart {
         ctx: &WarmStartContext<'_>,
         out: &mut [Impulse],
     ) -> Result<(), WarmStartError> {
-        for (i, o) in out.iter_mut().enumerate() {
-            *o = ctx.carried_or_zero(i);
-        }
+        CarriedWarmStart.warm_start(ctx, out)?;
         if out.is_empty() {
             return Ok(());
         }
-        self.velocities.clear();
-        self.velocities
-            .resize(ctx.problem.bodies.len(), Velocity::default());
-        self.report.clear();
-        let solver = match ctx.island.checked_sub(1) {
-            Some(k) => {
-                while self.forks.len() <= k {
-                    match self.solver.fork() {
-                        Some(fork) => self.forks.push(fork),
-                        None => break,
-                    }
-                }
-                match self.forks.get_mut(k) {
-                    Some(fork) => fork,
-                    None => &mut self.solver,
-                }
-            }
-            None => &mut self.solver,
-        };
-        solver
-            .solve(
-                ctx.problem,
-                &self.settings,
-                out,
-                &mut self.velocities,
-                &mut self.report,
-            )
-            .map_err(|e| WarmStartError::Provider(format!("presolve failed: {e}")))
+        let solver = solver_for(&mut self.solver, &mut self.forks, ctx.island);
+        self.inner.run(solver, ctx.problem, out, "presolve")
+    }
+}
+
+/// The solver for island `island`: the first island's is `solver`, the others' its forks
+/// (made on first use), or `solver` again when it does not fork.
+fn solver_for<'a>(
+    solver: &'a mut Box<dyn VelocitySolver>,
+    forks: &'a mut Vec<Box<dyn VelocitySolver>>,
+    island: usize,
+) -> &'a mut dyn VelocitySolver {
+    while island > forks.len() {
+        match solver.fork() {
+            Some(fork) => forks.push(fork),
+            None => return solver.as_mut(),
+        }
+    }
+    match island.checked_sub(1) {
+        Some(k) => forks[k].as_mut(),
+        None => solver.as_mut(),
     }
 }

@@ -18,10 +18,12 @@
 //! returned instead and the drop is counted (`diagnostics`: `dropped`).
 
 use deepcontact_core::{
-    ContactProblem, Impulse, Real, SolveReport, SolverSettings, SpecError, Velocity,
-    VelocitySolver, WarmStart, WarmStartContext, WarmStartError,
+    CarriedWarmStart, ContactProblem, Impulse, Real, SolveReport, SpecError, WarmStart,
+    WarmStartContext, WarmStartError,
 };
 use deepcontact_pgs::PgsSolver;
+
+use crate::inner::InnerSolve;
 
 /// Parameters of [`RelaxedWarmStart`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -59,12 +61,10 @@ impl Default for RelaxedConfig {
 #[derive(Debug)]
 pub struct RelaxedWarmStart {
     config: RelaxedConfig,
-    settings: SolverSettings,
+    inner: InnerSolve,
     solver: PgsSolver,
     /// The island's problem with its effective masses scaled by ω.
     relaxed: ContactProblem,
-    velocities: Vec<Velocity>,
-    report: SolveReport,
     /// Sweeps run, in all and per island; the largest of each step (the slowest island's,
     /// comparable with the world's iterations), summed, and the step being counted.
     sweeps: u64,
@@ -83,44 +83,26 @@ impl RelaxedWarmStart {
     /// A provider under `config` (validated: ω in [1, 2), 1 to `MAX_SWEEPS` sweeps, a
     /// finite tolerance ≥ 0).
     pub fn new(config: RelaxedConfig) -> Result<Self, SpecError> {
-        let invalid = |param: &str, value: String, reason: &str| SpecError::InvalidParameter {
-            spec: "sor".into(),
-            param: param.into(),
-            value,
-            reason: reason.into(),
-        };
         if !(1.0..2.0).contains(&config.omega) {
-            return Err(invalid(
-                "omega",
-                config.omega.to_string(),
-                "must be in [1, 2)",
-            ));
+            return Err(SpecError::InvalidParameter {
+                spec: "sor".into(),
+                param: "omega".into(),
+                value: config.omega.to_string(),
+                reason: "must be in [1, 2)".into(),
+            });
         }
-        if !(1..=Self::MAX_SWEEPS).contains(&config.sweeps) {
-            return Err(invalid(
-                "sweeps",
-                config.sweeps.to_string(),
-                "must be in 1..=100000",
-            ));
-        }
-        if !(config.tolerance.is_finite() && config.tolerance >= 0.0) {
-            return Err(invalid(
-                "tolerance",
-                config.tolerance.to_string(),
-                "must be finite and >= 0",
-            ));
-        }
+        let inner = InnerSolve::new(
+            "sor",
+            "sweeps",
+            config.sweeps,
+            Self::MAX_SWEEPS,
+            config.tolerance,
+        )?;
         Ok(Self {
             config,
-            settings: SolverSettings {
-                max_iterations: config.sweeps,
-                tolerance: config.tolerance,
-                ..SolverSettings::default()
-            },
+            inner,
             solver: PgsSolver::new(),
             relaxed: ContactProblem::new(),
-            velocities: Vec::new(),
-            report: SolveReport::default(),
             sweeps: 0,
             islands: 0,
             step_max_sum: 0,
@@ -153,7 +135,7 @@ impl RelaxedWarmStart {
 
     /// The report of the last island's sweeps (their count is `iterations`).
     pub fn last_report(&self) -> &SolveReport {
-        &self.report
+        self.inner.report()
     }
 }
 
@@ -167,9 +149,7 @@ impl WarmStart for RelaxedWarmStart {
         ctx: &WarmStartContext<'_>,
         out: &mut [Impulse],
     ) -> Result<(), WarmStartError> {
-        for (i, o) in out.iter_mut().enumerate() {
-            *o = ctx.carried_or_zero(i);
-        }
+        CarriedWarmStart.warm_start(ctx, out)?;
         if out.is_empty() {
             return Ok(());
         }
@@ -187,35 +167,25 @@ impl WarmStart for RelaxedWarmStart {
             }
         }
         r.manifolds.extend_from_slice(&problem.manifolds);
-        self.velocities.clear();
-        self.velocities
-            .resize(problem.bodies.len(), Velocity::default());
-        self.report.clear();
-        self.solver
-            .solve(
-                &self.relaxed,
-                &self.settings,
-                out,
-                &mut self.velocities,
-                &mut self.report,
-            )
-            .map_err(|e| WarmStartError::Provider(format!("over-relaxed sweeps failed: {e}")))?;
-        self.count(ctx.step, self.report.iterations);
-        let changes = &self.report.residual_inf;
+        self.inner
+            .run(&mut self.solver, &self.relaxed, out, "over-relaxed sweeps")?;
+        let (sweeps, changes) = (
+            self.inner.report().iterations,
+            &self.inner.report().residual_inf,
+        );
         let diverged = match (changes.first(), changes.last()) {
             // Growing changes, or a NaN among them.
             (Some(first), Some(last)) => last > first || last.is_nan() || first.is_nan(),
             _ => false,
         };
-        if diverged
+        let dropped = diverged
             || out
                 .iter()
-                .any(|i| !(i.normal.is_finite() && i.tangent.is_finite()))
-        {
+                .any(|i| !(i.normal.is_finite() && i.tangent.is_finite()));
+        self.count(ctx.step, sweeps);
+        if dropped {
             self.dropped += 1;
-            for (i, o) in out.iter_mut().enumerate() {
-                *o = ctx.carried_or_zero(i);
-            }
+            CarriedWarmStart.warm_start(ctx, out)?;
         }
         Ok(())
     }

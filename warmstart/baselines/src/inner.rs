@@ -1,0 +1,85 @@
+//! A bounded solve from the carried impulses, what `presolve` and `sor` share: the inner
+//! solver's stop rule (validated), its velocity buffer and its last report.
+
+use deepcontact_core::{
+    ContactProblem, Impulse, Real, SolveReport, SolverSettings, SpecError, Velocity,
+    VelocitySolver, WarmStartError,
+};
+
+/// The inner solve's settings and buffers (kept between calls: no allocation once grown).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct InnerSolve {
+    settings: SolverSettings,
+    velocities: Vec<Velocity>,
+    report: SolveReport,
+}
+
+impl InnerSolve {
+    /// At most `iterations` (in 1..=`max`) iterations, stopping below `tolerance` (finite,
+    /// ≥ 0); `spec` and `param` name the provider and its iterations parameter in errors.
+    pub(crate) fn new(
+        spec: &str,
+        param: &str,
+        iterations: u32,
+        max: u32,
+        tolerance: Real,
+    ) -> Result<Self, SpecError> {
+        let invalid = |param: &str, value: String, reason: String| SpecError::InvalidParameter {
+            spec: spec.into(),
+            param: param.into(),
+            value,
+            reason,
+        };
+        if !(1..=max).contains(&iterations) {
+            return Err(invalid(
+                param,
+                iterations.to_string(),
+                format!("must be in 1..={max}"),
+            ));
+        }
+        if !(tolerance.is_finite() && tolerance >= 0.0) {
+            return Err(invalid(
+                "tolerance",
+                tolerance.to_string(),
+                "must be finite and >= 0".into(),
+            ));
+        }
+        Ok(Self {
+            settings: SolverSettings {
+                max_iterations: iterations,
+                tolerance,
+                ..SolverSettings::default()
+            },
+            ..Self::default()
+        })
+    }
+
+    /// Solves `problem` with `solver` from `impulses` (in place); `what` names the solve in
+    /// the error.
+    pub(crate) fn run(
+        &mut self,
+        solver: &mut dyn VelocitySolver,
+        problem: &ContactProblem,
+        impulses: &mut [Impulse],
+        what: &str,
+    ) -> Result<(), WarmStartError> {
+        self.velocities.clear();
+        self.velocities
+            .resize(problem.bodies.len(), Velocity::default());
+        self.report.clear();
+        solver
+            .solve(
+                problem,
+                &self.settings,
+                impulses,
+                &mut self.velocities,
+                &mut self.report,
+            )
+            .map_err(|e| WarmStartError::Provider(format!("{what} failed: {e}")))
+    }
+
+    /// The report of the last solve.
+    pub(crate) fn report(&self) -> &SolveReport {
+        &self.report
+    }
+}
