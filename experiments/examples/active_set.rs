@@ -15,8 +15,8 @@
 //! cargo run --release -p deepcontact-experiments --example active_set -- 100..104
 //! ```
 
-use deepcontact_core::{ContactProblem, Impulse, SolveReport, SolverSettings, Velocity};
-use deepcontact_experiments::record::{IslandRecorder, pgs_iterations};
+use deepcontact_core::{ContactProblem, Impulse, SolverSettings};
+use deepcontact_experiments::record::{IslandRecorder, pgs_iterations, solve_from};
 use deepcontact_lcp::NewtonSolver;
 
 /// Steps recorded in each pile.
@@ -55,17 +55,7 @@ fn newton_iterations(
         max_iterations: 100,
         ..SolverSettings::default()
     };
-    let mut lambda = start.to_vec();
-    let mut velocities = vec![Velocity::default(); problem.bodies.len()];
-    let mut report = SolveReport::default();
-    newton.solve_lcp(
-        problem,
-        &settings,
-        &mut lambda,
-        &mut velocities,
-        &mut report,
-    )?;
-    Ok(report.iterations)
+    Ok(solve_from(newton, problem, start, &settings)?.0)
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

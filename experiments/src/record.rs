@@ -101,15 +101,20 @@ pub fn pgs_iterations(
         max_iterations: if tolerance < 1e-8 { 200_000 } else { 1000 },
         ..SolverSettings::default()
     };
+    solve_from(&mut PgsSolver::new(), problem, start, &settings)
+}
+
+/// Iterations of `solver` from `start` on `problem` under `settings`, and the impulses it
+/// ends at.
+pub fn solve_from(
+    solver: &mut dyn VelocitySolver,
+    problem: &ContactProblem,
+    start: &[Impulse],
+    settings: &SolverSettings,
+) -> Result<(u32, Vec<Impulse>), ExperimentError> {
     let mut lambda = start.to_vec();
     let mut velocities = vec![Velocity::default(); problem.bodies.len()];
     let mut report = SolveReport::default();
-    PgsSolver::new().solve(
-        problem,
-        &settings,
-        &mut lambda,
-        &mut velocities,
-        &mut report,
-    )?;
+    solver.solve(problem, settings, &mut lambda, &mut velocities, &mut report)?;
     Ok((report.iterations, lambda))
 }
