@@ -75,6 +75,38 @@ fn solve(problem: &ContactProblem, start: &[Impulse]) -> (Vec<Impulse>, SolveRep
     (lambda, report)
 }
 
+/// Exactly `n` PGS sweeps from `start` (tolerance 0).
+fn pgs_sweeps(problem: &ContactProblem, start: &[Impulse], n: u32) -> Vec<Impulse> {
+    let mut lambda = start.to_vec();
+    let mut velocities = vec![Velocity::default(); problem.bodies.len()];
+    let settings = SolverSettings {
+        max_iterations: n,
+        tolerance: 0.0,
+        ..SolverSettings::default()
+    };
+    PgsSolver::new()
+        .solve(
+            problem,
+            &settings,
+            &mut lambda,
+            &mut velocities,
+            &mut SolveReport::default(),
+        )
+        .unwrap();
+    lambda
+}
+
+/// A column of `n` circles and carried impulses a quarter short of its load (loads from
+/// before more bodies landed on top: the smooth error PGS is slow at), with the answer.
+fn short_of_load(n: usize) -> (ContactProblem, Vec<Impulse>, Vec<Option<Impulse>>) {
+    let answer = exact(n);
+    let carried = answer
+        .iter()
+        .map(|i| Some(Impulse::new(0.75 * i.normal, 0.0)))
+        .collect();
+    (column(n), answer, carried)
+}
+
 fn start_of(
     provider: &mut dyn WarmStart,
     problem: &ContactProblem,
@@ -154,13 +186,7 @@ fn extrapolate_continues_each_contact_linearly_and_alpha_zero_is_builtin() {
 
 #[test]
 fn krylov_corrects_a_carried_start_that_misses_the_load() {
-    let problem = column(8);
-    let answer = exact(8);
-    // Loads from before two more bodies landed on top: the smooth error PGS is slow at.
-    let carried: Vec<_> = answer
-        .iter()
-        .map(|i| Some(Impulse::new(0.75 * i.normal, 0.0)))
-        .collect();
+    let (problem, answer, carried) = short_of_load(8);
     let mut krylov = KrylovWarmStart::new(KrylovConfig::default()).unwrap();
     let start = start_of(&mut krylov, &problem, &carried, 1);
     let from_carried = solve(
@@ -306,12 +332,7 @@ fn regression_krylov_blew_up_to_1e26_on_a_singular_island_without_a_solution() {
 
 #[test]
 fn presolve_with_newton_reaches_the_column_answer_and_pgs_stops_at_once() {
-    let problem = column(8);
-    let answer = exact(8);
-    let carried: Vec<_> = answer
-        .iter()
-        .map(|i| Some(Impulse::new(0.75 * i.normal, 0.0)))
-        .collect();
+    let (problem, answer, carried) = short_of_load(8);
     let mut presolve = PresolveWarmStart::new(
         Box::new(deepcontact_lcp::NewtonSolver::new()),
         PresolveConfig::default(),
@@ -346,23 +367,7 @@ fn presolve_spends_at_most_its_iterations_and_rejects_bad_settings() {
     let mut presolve = PresolveWarmStart::new(Box::new(PgsSolver::new()), config).unwrap();
     let start = start_of(&mut presolve, &problem, &carried, 0);
     assert_eq!(presolve.last_report().iterations, 1);
-    let mut sweep = vec![Impulse::ZERO; 8];
-    let mut velocities = vec![Velocity::default(); problem.bodies.len()];
-    let settings = SolverSettings {
-        max_iterations: 1,
-        tolerance: 0.0,
-        ..SolverSettings::default()
-    };
-    PgsSolver::new()
-        .solve(
-            &problem,
-            &settings,
-            &mut sweep,
-            &mut velocities,
-            &mut SolveReport::default(),
-        )
-        .unwrap();
-    assert_eq!(start, sweep);
+    assert_eq!(start, pgs_sweeps(&problem, &[Impulse::ZERO; 8], 1));
     // An empty island costs nothing.
     let empty = ContactProblem::new();
     assert!(start_of(&mut presolve, &empty, &[], 0).is_empty());
@@ -381,12 +386,7 @@ fn presolve_spends_at_most_its_iterations_and_rejects_bad_settings() {
 /// the carried start; with ω = 1 they are plain PGS sweeps, bit for bit.
 #[test]
 fn over_relaxed_sweeps_cut_the_world_iterations_and_the_total() {
-    let problem = column(12);
-    let answer = exact(12);
-    let carried: Vec<_> = answer
-        .iter()
-        .map(|i| Some(Impulse::new(0.75 * i.normal, 0.0)))
-        .collect();
+    let (problem, _, carried) = short_of_load(12);
     let from_carried = solve(
         &problem,
         &start_of(&mut CarriedWarmStart, &problem, &carried, 1),
@@ -420,23 +420,8 @@ fn over_relaxed_sweeps_cut_the_world_iterations_and_the_total() {
         &carried,
         1,
     );
-    let mut lambda: Vec<Impulse> = carried.iter().map(|c| c.unwrap()).collect();
-    let mut velocities = vec![Velocity::default(); problem.bodies.len()];
-    let settings = SolverSettings {
-        max_iterations: 7,
-        tolerance: 0.0,
-        ..SolverSettings::default()
-    };
-    PgsSolver::new()
-        .solve(
-            &problem,
-            &settings,
-            &mut lambda,
-            &mut velocities,
-            &mut SolveReport::default(),
-        )
-        .unwrap();
-    assert_eq!(start, lambda);
+    let carried_start: Vec<Impulse> = carried.iter().map(|c| c.unwrap()).collect();
+    assert_eq!(start, pgs_sweeps(&problem, &carried_start, 7));
     assert!(start_of(&mut sor, &ContactProblem::new(), &[], 2).is_empty());
     for (omega, sweeps, tolerance) in [
         (0.9, 10, 1e-4),
