@@ -342,14 +342,32 @@ fn simulate_seed(
     Ok(c)
 }
 
-fn f32_bytes(v: &[f32]) -> Vec<u8> {
-    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+/// A tensor to write: name, dtype, shape, little-endian bytes.
+type Tensor<'a> = (&'a str, Dtype, Vec<usize>, Vec<u8>);
+
+fn f32s<'a>(name: &'a str, shape: Vec<usize>, v: &[f32]) -> Tensor<'a> {
+    (
+        name,
+        Dtype::F32,
+        shape,
+        v.iter().flat_map(|x| x.to_le_bytes()).collect(),
+    )
 }
-fn i64_bytes(v: &[i64]) -> Vec<u8> {
-    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+fn i64s<'a>(name: &'a str, shape: Vec<usize>, v: &[i64]) -> Tensor<'a> {
+    (
+        name,
+        Dtype::I64,
+        shape,
+        v.iter().flat_map(|x| x.to_le_bytes()).collect(),
+    )
 }
-fn i32_bytes(v: &[i32]) -> Vec<u8> {
-    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+fn i32s<'a>(name: &'a str, shape: Vec<usize>, v: &[i32]) -> Tensor<'a> {
+    (
+        name,
+        Dtype::I32,
+        shape,
+        v.iter().flat_map(|x| x.to_le_bytes()).collect(),
+    )
 }
 
 /// The metadata header of a seed's file.
@@ -420,117 +438,45 @@ fn write_seed(
     );
     let (nx, ny) = (layout.grid.nx, layout.grid.ny);
     let (ci, co) = (layout.input_channels.len(), layout.output_channels.len());
-    let owned: Vec<(&str, Dtype, Vec<usize>, Vec<u8>)> = vec![
-        ("steps", Dtype::I64, vec![s], i64_bytes(&c.steps)),
-        (
-            "inputs",
-            Dtype::F32,
-            vec![s, ci, ny, nx],
-            f32_bytes(&c.inputs),
-        ),
-        (
-            "labels",
-            Dtype::F32,
-            vec![s, co, ny, nx],
-            f32_bytes(&c.labels),
-        ),
-        ("body_mass", Dtype::F32, vec![b], f32_bytes(&c.body_mass)),
-        (
-            "body_position",
-            Dtype::F32,
-            vec![s, b, 2],
-            f32_bytes(&c.body_position),
-        ),
-        (
-            "body_velocity",
-            Dtype::F32,
-            vec![s, b, 2],
-            f32_bytes(&c.body_velocity),
-        ),
-        (
+    let e = c.contact_edges.len() / 2;
+    let owned: Vec<Tensor<'_>> = vec![
+        i64s("steps", vec![s], &c.steps),
+        f32s("inputs", vec![s, ci, ny, nx], &c.inputs),
+        f32s("labels", vec![s, co, ny, nx], &c.labels),
+        f32s("body_mass", vec![b], &c.body_mass),
+        f32s("body_position", vec![s, b, 2], &c.body_position),
+        f32s("body_velocity", vec![s, b, 2], &c.body_velocity),
+        f32s(
             "body_angular_velocity",
-            Dtype::F32,
             vec![s, b],
-            f32_bytes(&c.body_angular_velocity),
+            &c.body_angular_velocity,
         ),
-        (
-            "contact_offsets",
-            Dtype::I64,
-            vec![s + 1],
-            i64_bytes(&c.contact_offsets),
-        ),
-        (
-            "contact_position",
-            Dtype::F32,
-            vec![n, 2],
-            f32_bytes(&c.contact_position),
-        ),
-        (
-            "contact_bodies",
-            Dtype::I32,
-            vec![n, 2],
-            i32_bytes(&c.contact_bodies),
-        ),
-        (
-            "contact_normal",
-            Dtype::F32,
-            vec![n, 2],
-            f32_bytes(&c.contact_normal),
-        ),
-        (
-            "contact_warm_start",
-            Dtype::F32,
-            vec![n, 2],
-            f32_bytes(&c.contact_warm_start),
-        ),
-        (
-            "contact_impulse",
-            Dtype::F32,
-            vec![n, 2],
-            f32_bytes(&c.contact_impulse),
-        ),
+        i64s("contact_offsets", vec![s + 1], &c.contact_offsets),
+        f32s("contact_position", vec![n, 2], &c.contact_position),
+        i32s("contact_bodies", vec![n, 2], &c.contact_bodies),
+        f32s("contact_normal", vec![n, 2], &c.contact_normal),
+        f32s("contact_warm_start", vec![n, 2], &c.contact_warm_start),
+        f32s("contact_impulse", vec![n, 2], &c.contact_impulse),
         (
             "contact_persisted",
             Dtype::U8,
             vec![n],
             c.contact_persisted.clone(),
         ),
-        (
+        f32s(
             "contact_previous_impulse",
-            Dtype::F32,
             vec![n, 2],
-            f32_bytes(&c.contact_previous_impulse),
+            &c.contact_previous_impulse,
         ),
-        (
-            "contact_separation",
-            Dtype::F32,
-            vec![n],
-            f32_bytes(&c.contact_separation),
-        ),
-        (
+        f32s("contact_separation", vec![n], &c.contact_separation),
+        f32s(
             "contact_relative_velocity",
-            Dtype::F32,
             vec![n, 2],
-            f32_bytes(&c.contact_relative_velocity),
+            &c.contact_relative_velocity,
         ),
-        (
-            "contact_island",
-            Dtype::I32,
-            vec![n],
-            i32_bytes(&c.contact_island),
-        ),
-        (
-            "edge_offsets",
-            Dtype::I64,
-            vec![s + 1],
-            i64_bytes(&c.edge_offsets),
-        ),
-        (
-            "contact_edges",
-            Dtype::I32,
-            vec![c.contact_edges.len() / 2, 2],
-            i32_bytes(&c.contact_edges),
-        ),
+        i32s("contact_island", vec![n], &c.contact_island),
+        i64s("edge_offsets", vec![s + 1], &c.edge_offsets),
+        i32s("contact_edges", vec![e, 2], &c.contact_edges),
     ];
     let views = owned
         .iter()
