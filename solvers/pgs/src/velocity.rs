@@ -92,6 +92,40 @@ pub(crate) struct Row {
     lt: Real,
 }
 
+impl Row {
+    /// Point `p`'s row, starting from `s` projected onto the cone λn ≥ 0, |λt| ≤ μ λn (with
+    /// `raw`, the tangent as given); a NaN start passes through to the non-finite check of
+    /// the first sweep (a negative bound would make the friction clamp panic).
+    fn of(p: &deepcontact_core::ContactPoint, s: &Impulse, raw: bool) -> Self {
+        let t = p.tangent();
+        let start_normal = if s.normal < 0.0 { 0.0 } else { s.normal };
+        let bound = p.friction * start_normal;
+        let start_tangent = if raw {
+            s.tangent
+        } else if s.tangent > bound {
+            bound
+        } else if s.tangent < -bound {
+            -bound
+        } else {
+            s.tangent
+        };
+        Row {
+            nx: p.normal.x,
+            ny: p.normal.y,
+            rna: cross(&p.r_a, &p.normal),
+            rnb: cross(&p.r_b, &p.normal),
+            rta: cross(&p.r_a, &t),
+            rtb: cross(&p.r_b, &t),
+            normal_mass: p.normal_mass,
+            tangent_mass: p.tangent_mass,
+            friction: p.friction,
+            bias: p.velocity_bias,
+            ln: start_normal,
+            lt: start_tangent,
+        }
+    }
+}
+
 /// One manifold: its body pair with their inverse masses, its rows, and block-solver data.
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct Manifold {
@@ -236,38 +270,13 @@ impl PgsSolver {
         }
         self.rows.clear();
         let raw = self.settings.raw_start;
-        self.rows
-            .extend(problem.points.iter().zip(start).map(|(p, s)| {
-                let t = p.tangent();
-                // The start projected onto the cone λn ≥ 0, |λt| ≤ μ λn (a negative bound
-                // would make the friction clamp panic); NaN passes through to the
-                // non-finite check of the first sweep.
-                let start_normal = if s.normal < 0.0 { 0.0 } else { s.normal };
-                let bound = p.friction * start_normal;
-                let start_tangent = if raw {
-                    s.tangent
-                } else if s.tangent > bound {
-                    bound
-                } else if s.tangent < -bound {
-                    -bound
-                } else {
-                    s.tangent
-                };
-                Row {
-                    nx: p.normal.x,
-                    ny: p.normal.y,
-                    rna: cross(&p.r_a, &p.normal),
-                    rnb: cross(&p.r_b, &p.normal),
-                    rta: cross(&p.r_a, &t),
-                    rtb: cross(&p.r_b, &t),
-                    normal_mass: p.normal_mass,
-                    tangent_mass: p.tangent_mass,
-                    friction: p.friction,
-                    bias: p.velocity_bias,
-                    ln: start_normal,
-                    lt: start_tangent,
-                }
-            }));
+        self.rows.extend(
+            problem
+                .points
+                .iter()
+                .zip(start)
+                .map(|(p, s)| Row::of(p, s, raw)),
+        );
         self.manifolds.clear();
         for &(s, e) in &problem.manifolds {
             if e == s {

@@ -97,24 +97,7 @@ pub(crate) fn solve_chunked(
         .iter()
         .map(|seg| seg.batches.len().div_ceil(chunk));
     let threads = threads.min(widest.max().unwrap_or(1)).max(1);
-    // Items colour by colour: the chunks, then the one-at-a-time manifolds if any.
-    let mut items = Vec::new();
-    let mut counts = Vec::with_capacity(s.segments.len());
-    let mut rest: &mut [Batch] = s.batches;
-    for seg in s.segments {
-        let (colour, tail) = std::mem::take(&mut rest).split_at_mut(seg.batches.len());
-        rest = tail;
-        let before = items.len();
-        items.extend(
-            colour
-                .chunks_mut(chunk)
-                .map(|b| Item::Batches(Mutex::new(b))),
-        );
-        if !seg.manifolds.is_empty() {
-            items.push(Item::Serial(seg.manifolds.clone()));
-        }
-        counts.push(items.len() - before);
-    }
+    let (mut items, counts) = work_items(s.batches, s.segments, chunk);
     if threads == 1 {
         return arch.dispatch(OneThread {
             items: &mut items,
@@ -183,6 +166,33 @@ pub(crate) fn solve_chunked(
         );
     }
     last
+}
+
+/// The work items colour by colour — each colour's batches in chunks of `chunk`, then its
+/// one-at-a-time manifolds if any — and the number of items of each colour (a phase).
+fn work_items<'b>(
+    batches: &'b mut [Batch],
+    segments: &[Segment],
+    chunk: usize,
+) -> (Vec<Item<'b>>, Vec<usize>) {
+    let mut items = Vec::new();
+    let mut counts = Vec::with_capacity(segments.len());
+    let mut rest = batches;
+    for seg in segments {
+        let (colour, tail) = std::mem::take(&mut rest).split_at_mut(seg.batches.len());
+        rest = tail;
+        let before = items.len();
+        items.extend(
+            colour
+                .chunks_mut(chunk)
+                .map(|b| Item::Batches(Mutex::new(b))),
+        );
+        if !seg.manifolds.is_empty() {
+            items.push(Item::Serial(seg.manifolds.clone()));
+        }
+        counts.push(items.len() - before);
+    }
+    (items, counts)
 }
 
 /// [`solve_one_thread`] as an operation of [`pulp::Arch::dispatch`]: the whole loop compiled
