@@ -666,6 +666,11 @@ mod tests {
                 assert_eq!((warm[2 * k], previous[2 * k]), (0.0, 0.0), "contact {k}");
             }
         }
+        // A resting contact had a load the step before too (the column is not left at zero).
+        let loaded_before = (0..n)
+            .filter(|&k| persisted[k] == 1 && previous[2 * k] > 0.0)
+            .count();
+        assert!(loaded_before > n / 4, "{loaded_before} of {n}");
         assert_eq!(f32s("contact_separation").len(), n);
         assert_eq!(f32s("contact_relative_velocity").len(), 2 * n);
         assert_eq!(i32s("contact_island").len(), n);
