@@ -37,6 +37,9 @@ pub struct GenerateArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+    /// Leave out the input and label grids (for per-contact and graph models; ~40× smaller).
+    #[arg(long)]
+    pub no_grids: bool,
     /// Velocity solver and stop rule of the simulations.
     #[command(flatten)]
     pub solver: SolverArgs,
@@ -62,6 +65,7 @@ impl GenerateArgs {
             progress: !self.quiet,
             solver: self.solver.solver_spec()?,
             world: self.solver.preset_world_settings()?,
+            grids: !self.no_grids,
         })
     }
 }

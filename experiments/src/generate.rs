@@ -5,8 +5,11 @@
 //! input grids `[6, 61, 61]`, the label grids `[2, 61, 61]` (from the step's final impulses),
 //! the raw bodies and contact points, and what per-contact models need beside them (format 2):
 //! whether each impulse was carried, the impulses of the step before, separation and relative
-//! velocity, the island, and the contact graph (pairs of contacts sharing a moving body). The
-//! format is documented in `models/README.md`.
+//! velocity, the island, and the contact graph (pairs of contacts sharing a moving body); and
+//! (format 3) each point's velocity-solver row — its bodies, anchors, effective masses,
+//! friction and bias, with the bodies' inverse masses — so that a training script can run the
+//! solver's own sweeps on the recorded problems. The grids can be left out (`grids: false`).
+//! The format is documented in `models/README.md`.
 //! Seeds run in parallel (rayon); each file depends only on its seed, so the output is
 //! deterministic. `--shard K/N` keeps the seeds `i` with `i mod N == K`; seeds whose file already
 //! exists and is complete are skipped; files are written to a temporary name and renamed.
@@ -30,7 +33,7 @@ use crate::ExperimentError;
 use crate::atomic::write_atomic_with;
 
 /// Version of the training-data format (the `format_version` metadata field).
-pub const FORMAT_VERSION: &str = "2";
+pub const FORMAT_VERSION: &str = "3";
 /// The `format` metadata field.
 pub const FORMAT: &str = "deepcontact-train";
 
@@ -55,6 +58,9 @@ pub struct GenerateConfig {
     pub solver: String,
     /// World settings of the simulations (default: the thesis's).
     pub world: WorldSettings,
+    /// Write the input and label grids (default true); without them a file holds only the
+    /// per-body and per-contact tensors, ~40× smaller, for graph models.
+    pub grids: bool,
 }
 
 impl Default for GenerateConfig {
@@ -69,6 +75,7 @@ impl Default for GenerateConfig {
             progress: true,
             solver: "pgs".into(),
             world: WorldSettings::default(),
+            grids: true,
         }
     }
 }
@@ -110,11 +117,22 @@ struct StepCapture {
     /// Whether the current step has been snapshotted.
     snap: Option<u64>,
     input: Vec<f32>,
-    bodies: Vec<(f32, [f32; 2], [f32; 2], f32)>,
+    bodies: Vec<BodyCapture>,
     /// This step's points as the providers saw them, by contact id.
     warm: Vec<(ContactId, PointCapture)>,
     /// The warm starts of the step before (`warm_step` − 1's, sorted), by contact id.
     previous: Vec<(ContactId, PointCapture)>,
+}
+
+/// One world body at the warm start of a step's first island.
+#[derive(Debug, Clone, Copy, Default)]
+struct BodyCapture {
+    mass: f32,
+    /// Inverse mass and inverse rotational inertia (0 for static bodies).
+    inverse: [f32; 2],
+    position: [f32; 2],
+    velocity: [f32; 2],
+    angular_velocity: f32,
 }
 
 /// One contact point as a provider sees it.
@@ -126,6 +144,23 @@ struct PointCapture {
     /// Relative velocity of body B against A at the point, along the normal and the tangent.
     velocity: [f32; 2],
     island: i32,
+    row: SolverRow,
+}
+
+/// A point's row as the velocity solver sees it (see `ContactPoint`).
+#[derive(Debug, Clone, Copy, Default)]
+struct SolverRow {
+    /// World handles of the solver's bodies A and B (the normal points from A to B).
+    bodies: [i32; 2],
+    normal: [f32; 2],
+    /// Anchors `r_a`, `r_b` (point minus centre of mass), m.
+    anchors: [f32; 4],
+    /// Normal and tangent effective masses, kg.
+    mass: [f32; 2],
+    friction: f32,
+    velocity_bias: f32,
+    /// Index of the point in its island's problem (the solver's point order).
+    point: i32,
 }
 
 impl WarmStart for StepCapture {
@@ -155,14 +190,14 @@ impl WarmStart for StepCapture {
                     self.error = Some(e.to_string());
                 }
                 self.bodies.clear();
-                self.bodies.extend(world.bodies().iter().map(|b| {
-                    (
-                        b.mass as f32,
-                        [b.position.x as f32, b.position.y as f32],
-                        [b.linear_velocity.x as f32, b.linear_velocity.y as f32],
-                        b.angular_velocity as f32,
-                    )
-                }));
+                self.bodies
+                    .extend(world.bodies().iter().map(|b| BodyCapture {
+                        mass: b.mass as f32,
+                        inverse: [b.inv_mass as f32, b.inv_inertia as f32],
+                        position: [b.position.x as f32, b.position.y as f32],
+                        velocity: [b.linear_velocity.x as f32, b.linear_velocity.y as f32],
+                        angular_velocity: b.angular_velocity as f32,
+                    }));
             }
         }
         let problem = ctx.problem;
@@ -182,6 +217,20 @@ impl WarmStart for StepCapture {
                     separation: p.separation as f32,
                     velocity: [dv.dot(&p.normal) as f32, dv.dot(&p.tangent()) as f32],
                     island: ctx.island as i32,
+                    row: SolverRow {
+                        bodies: [a.world_index as i32, b.world_index as i32],
+                        normal: [p.normal.x as f32, p.normal.y as f32],
+                        anchors: [
+                            p.r_a.x as f32,
+                            p.r_a.y as f32,
+                            p.r_b.x as f32,
+                            p.r_b.y as f32,
+                        ],
+                        mass: [p.normal_mass as f32, p.tangent_mass as f32],
+                        friction: p.friction as f32,
+                        velocity_bias: p.velocity_bias as f32,
+                        point: i as i32,
+                    },
                 },
             ));
         }
@@ -196,6 +245,7 @@ struct Columns {
     inputs: Vec<f32>,
     labels: Vec<f32>,
     body_mass: Vec<f32>,
+    body_inverse_mass: Vec<f32>,
     body_position: Vec<f32>,
     body_velocity: Vec<f32>,
     body_angular_velocity: Vec<f32>,
@@ -210,6 +260,13 @@ struct Columns {
     contact_separation: Vec<f32>,
     contact_relative_velocity: Vec<f32>,
     contact_island: Vec<i32>,
+    contact_solver_bodies: Vec<i32>,
+    contact_solver_normal: Vec<f32>,
+    contact_anchors: Vec<f32>,
+    contact_row_mass: Vec<f32>,
+    contact_friction: Vec<f32>,
+    contact_velocity_bias: Vec<f32>,
+    contact_point: Vec<i32>,
     edge_offsets: Vec<i64>,
     contact_edges: Vec<i32>,
 }
@@ -295,19 +352,23 @@ fn simulate_seed(
         rec.warm.sort_unstable_by_key(|a| a.0);
         let finals = world.contacts();
         let raw = world.raw_contacts();
-        labeler
-            .encode_world_labels(&world, &mut label)
-            .map_err(|e| grid_err(&e))?;
         c.steps.push(report.step as i64);
-        c.inputs.extend_from_slice(&rec.input);
-        c.labels.extend_from_slice(&label);
-        if c.body_mass.is_empty() {
-            c.body_mass.extend(rec.bodies.iter().map(|b| b.0));
+        if config.grids {
+            labeler
+                .encode_world_labels(&world, &mut label)
+                .map_err(|e| grid_err(&e))?;
+            c.inputs.extend_from_slice(&rec.input);
+            c.labels.extend_from_slice(&label);
         }
-        for (_, p, v, w) in &rec.bodies {
-            c.body_position.extend(p);
-            c.body_velocity.extend(v);
-            c.body_angular_velocity.push(*w);
+        if c.body_mass.is_empty() {
+            c.body_mass.extend(rec.bodies.iter().map(|b| b.mass));
+            c.body_inverse_mass
+                .extend(rec.bodies.iter().flat_map(|b| b.inverse));
+        }
+        for b in &rec.bodies {
+            c.body_position.extend(b.position);
+            c.body_velocity.extend(b.velocity);
+            c.body_angular_velocity.push(b.angular_velocity);
         }
         pairs.clear();
         for r in raw {
@@ -319,6 +380,14 @@ fn simulate_seed(
             c.contact_separation.push(point.separation);
             c.contact_relative_velocity.extend(point.velocity);
             c.contact_island.push(point.island);
+            let row = &point.row;
+            c.contact_solver_bodies.extend(row.bodies);
+            c.contact_solver_normal.extend(row.normal);
+            c.contact_anchors.extend(row.anchors);
+            c.contact_row_mass.extend(row.mass);
+            c.contact_friction.push(row.friction);
+            c.contact_velocity_bias.push(row.velocity_bias);
+            c.contact_point.push(row.point);
             pairs.push([r.id.body_a as i32, r.id.body_b as i32]);
             c.contact_position
                 .extend([r.point.x as f32, r.point.y as f32]);
@@ -404,6 +473,7 @@ fn metadata(
         })
         .to_string(),
     );
+    put("grids", config.grids.to_string());
     put("grid_layout", layout.to_json());
     put(
         "input_channels",
@@ -439,11 +509,10 @@ fn write_seed(
     let (nx, ny) = (layout.grid.nx, layout.grid.ny);
     let (ci, co) = (layout.input_channels.len(), layout.output_channels.len());
     let e = c.contact_edges.len() / 2;
-    let owned: Vec<Tensor<'_>> = vec![
+    let mut owned: Vec<Tensor<'_>> = vec![
         i64s("steps", vec![s], &c.steps),
-        f32s("inputs", vec![s, ci, ny, nx], &c.inputs),
-        f32s("labels", vec![s, co, ny, nx], &c.labels),
         f32s("body_mass", vec![b], &c.body_mass),
+        f32s("body_inverse_mass", vec![b, 2], &c.body_inverse_mass),
         f32s("body_position", vec![s, b, 2], &c.body_position),
         f32s("body_velocity", vec![s, b, 2], &c.body_velocity),
         f32s(
@@ -475,9 +544,28 @@ fn write_seed(
             &c.contact_relative_velocity,
         ),
         i32s("contact_island", vec![n], &c.contact_island),
+        i32s(
+            "contact_solver_bodies",
+            vec![n, 2],
+            &c.contact_solver_bodies,
+        ),
+        f32s(
+            "contact_solver_normal",
+            vec![n, 2],
+            &c.contact_solver_normal,
+        ),
+        f32s("contact_anchors", vec![n, 4], &c.contact_anchors),
+        f32s("contact_row_mass", vec![n, 2], &c.contact_row_mass),
+        f32s("contact_friction", vec![n], &c.contact_friction),
+        f32s("contact_velocity_bias", vec![n], &c.contact_velocity_bias),
+        i32s("contact_point", vec![n], &c.contact_point),
         i64s("edge_offsets", vec![s + 1], &c.edge_offsets),
         i32s("contact_edges", vec![e, 2], &c.contact_edges),
     ];
+    if config.grids {
+        owned.push(f32s("inputs", vec![s, ci, ny, nx], &c.inputs));
+        owned.push(f32s("labels", vec![s, co, ny, nx], &c.labels));
+    }
     let views = owned
         .iter()
         .map(|(name, dtype, shape, bytes)| {
@@ -495,7 +583,8 @@ fn write_seed(
 
 /// Whether `path` is a complete file of this format for `seed` with these settings: the header
 /// parses, the metadata matches, and the file is as long as the header says.
-pub fn is_complete(path: &Path, seed: u64, steps: u64, bodies: usize) -> bool {
+pub fn is_complete(path: &Path, seed: u64, config: &GenerateConfig) -> bool {
+    let (steps, bodies) = (config.steps, config.bodies);
     let check = || -> Option<bool> {
         let mut f = std::fs::File::open(path).ok()?;
         let len = f.metadata().ok()?.len();
@@ -516,6 +605,7 @@ pub fn is_complete(path: &Path, seed: u64, steps: u64, bodies: usize) -> bool {
             || get("seed")? != seed.to_string()
             || get("steps_simulated")? != steps.to_string()
             || get("bodies")? != bodies.to_string()
+            || get("grids")? != config.grids.to_string()
         {
             return Some(false);
         }
@@ -543,7 +633,11 @@ pub fn run_generate(
     config.world.validate()?;
     crate::limits::check_threads(config.threads)?;
     let layout = GridLayout::thesis();
-    let per_step = 4 * (layout.input_len() + layout.output_len()) as u128;
+    let per_step = if config.grids {
+        4 * (layout.input_len() + layout.output_len()) as u128
+    } else {
+        0
+    };
     let workers = crate::threads(config.threads).min(config.seeds.len().max(1)) as u128;
     crate::limits::check_memory(
         "generate",
@@ -554,9 +648,7 @@ pub fn run_generate(
         .seeds
         .iter()
         .copied()
-        .filter(|&s| {
-            config.force || !is_complete(&seed_file(&config.out, s), s, config.steps, config.bodies)
-        })
+        .filter(|&s| config.force || !is_complete(&seed_file(&config.out, s), s, config))
         .collect();
     let skipped = config.seeds.len() - todo.len();
     let bar = if config.progress {
@@ -689,6 +781,120 @@ mod tests {
                 assert!(a.iter().any(|x| b.contains(x) && mass[*x as usize] > 0.0));
             }
         }
+        std::fs::remove_dir_all(&out).ok();
+    }
+
+    /// The recorded solver rows are the solver's: with the bodies' recorded velocities and
+    /// inverse masses, the step's final impulses satisfy the contact conditions far better
+    /// than a cold start does (a wrong sign, anchor or mass would break this), the effective
+    /// masses follow from the anchors, and no grids are written when they are not asked for.
+    #[test]
+    fn generated_solver_rows_reproduce_the_solved_contact_conditions() {
+        let out = std::env::temp_dir().join(format!("dc-generate-rows-{}", std::process::id()));
+        let config = GenerateConfig {
+            seeds: vec![4],
+            out: out.clone(),
+            steps: 90,
+            threads: 1,
+            progress: false,
+            grids: false,
+            ..GenerateConfig::default()
+        };
+        run_generate(&config, &crate::full_registry()).unwrap();
+        let bytes = std::fs::read(seed_file(&out, 4)).unwrap();
+        let file = safetensors::SafeTensors::deserialize(&bytes).unwrap();
+        assert!(file.tensor("inputs").is_err() && file.tensor("labels").is_err());
+        let raw = |name: &str, width: usize| -> Vec<Vec<f64>> {
+            let t = file.tensor(name).unwrap();
+            let v: Vec<f64> = match t.dtype() {
+                Dtype::F32 => t
+                    .data()
+                    .chunks(4)
+                    .map(|b| f32::from_le_bytes(b.try_into().unwrap()) as f64)
+                    .collect(),
+                Dtype::I32 => t
+                    .data()
+                    .chunks(4)
+                    .map(|b| i32::from_le_bytes(b.try_into().unwrap()) as f64)
+                    .collect(),
+                _ => t
+                    .data()
+                    .chunks(8)
+                    .map(|b| i64::from_le_bytes(b.try_into().unwrap()) as f64)
+                    .collect(),
+            };
+            v.chunks(width).map(<[f64]>::to_vec).collect()
+        };
+        let (offsets, inverse) = (raw("contact_offsets", 1), raw("body_inverse_mass", 2));
+        let nb = inverse.len();
+        let (vel, ang) = (raw("body_velocity", 2), raw("body_angular_velocity", 1));
+        let (bodies, pair) = (raw("contact_solver_bodies", 2), raw("contact_bodies", 2));
+        let (normal, anchors, mass) = (
+            raw("contact_solver_normal", 2),
+            raw("contact_anchors", 4),
+            raw("contact_row_mass", 2),
+        );
+        let (bias, impulse) = (raw("contact_velocity_bias", 1), raw("contact_impulse", 2));
+        let cross = |r: &[f64], n: &[f64]| r[0] * n[1] - r[1] * n[0];
+        let (mut cold, mut solved, mut rows) = (0.0f64, 0.0f64, 0usize);
+        for s in 0..offsets.len() - 1 {
+            let range = offsets[s][0] as usize..offsets[s + 1][0] as usize;
+            // Body velocities after the step's final impulses.
+            let mut v: Vec<[f64; 3]> = (0..nb)
+                .map(|b| [vel[s * nb + b][0], vel[s * nb + b][1], ang[s * nb + b][0]])
+                .collect();
+            for k in range.clone() {
+                let (a, b) = (bodies[k][0] as usize, bodies[k][1] as usize);
+                let mut sorted = [a, b];
+                sorted.sort_unstable();
+                assert_eq!(
+                    [sorted[0] as f64, sorted[1] as f64],
+                    [pair[k][0], pair[k][1]]
+                );
+                let (n, t) = (&normal[k], [-normal[k][1], normal[k][0]]);
+                let (ra, rb) = (&anchors[k][..2], &anchors[k][2..]);
+                let k_n = inverse[a][0]
+                    + inverse[b][0]
+                    + inverse[a][1] * cross(ra, n).powi(2)
+                    + inverse[b][1] * cross(rb, n).powi(2);
+                assert!((mass[k][0] * k_n - 1.0).abs() < 1e-4, "contact {k}");
+                let p = [
+                    impulse[k][0] * n[0] + impulse[k][1] * t[0],
+                    impulse[k][0] * n[1] + impulse[k][1] * t[1],
+                ];
+                for (body, r, sign) in [(a, ra, -1.0), (b, rb, 1.0)] {
+                    v[body][0] += sign * inverse[body][0] * p[0];
+                    v[body][1] += sign * inverse[body][0] * p[1];
+                    v[body][2] += sign * inverse[body][1] * cross(r, &p);
+                }
+            }
+            let vn = |v: &[[f64; 3]], k: usize| {
+                let (a, b) = (bodies[k][0] as usize, bodies[k][1] as usize);
+                let (ra, rb) = (&anchors[k][..2], &anchors[k][2..]);
+                let dv = [
+                    v[b][0] - v[b][2] * rb[1] - v[a][0] + v[a][2] * ra[1],
+                    v[b][1] + v[b][2] * rb[0] - v[a][1] - v[a][2] * ra[0],
+                ];
+                dv[0] * normal[k][0] + dv[1] * normal[k][1]
+            };
+            let before: Vec<[f64; 3]> = (0..nb)
+                .map(|b| [vel[s * nb + b][0], vel[s * nb + b][1], ang[s * nb + b][0]])
+                .collect();
+            for k in range {
+                // Natural residual of the normal row: λ − max(0, λ − m (vn − bias)).
+                let natural = |lambda: f64, vn: f64| {
+                    (lambda - (lambda - mass[k][0] * (vn - bias[k][0])).max(0.0)).abs()
+                };
+                solved = solved.max(natural(impulse[k][0], vn(&v, k)));
+                cold = cold.max(natural(0.0, vn(&before, k)));
+                rows += 1;
+            }
+        }
+        assert!(rows > 100, "{rows} rows");
+        assert!(
+            solved < 0.02 && solved < 1e-2 * cold,
+            "solved {solved}, cold {cold}"
+        );
         std::fs::remove_dir_all(&out).ok();
     }
 }

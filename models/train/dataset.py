@@ -9,9 +9,9 @@ import numpy as np
 from safetensors import safe_open
 
 FORMAT = "deepcontact-train"
-# Format 2 added per-contact tensors (models/README.md); the grids this loader reads are the
-# same in both.
-FORMAT_VERSIONS = ("1", "2")
+# Format 2 added per-contact tensors, format 3 the solver rows and files without grids
+# (models/README.md); the grids this loader reads are the same in all three.
+FORMAT_VERSIONS = ("1", "2", "3")
 
 
 def seed_file(data_dir: Path, seed: int) -> Path:
@@ -47,7 +47,9 @@ def load_seeds(data_dir: Path, seeds, every: int = 1, min_step: int = 0):
         h = read_header(path)
         if header is None:
             header = h
-        elif h["grid_layout"] != header["grid_layout"]:
+        if h.get("grids", "true") != "true":
+            raise ValueError(f"{path}: written with --no-grids; the CNNs need the grids")
+        if h["grid_layout"] != header["grid_layout"]:
             raise ValueError(f"{path}: grid layout differs from the first file")
         with safe_open(str(path), framework="numpy") as f:
             steps = f.get_tensor("steps")
