@@ -3,7 +3,8 @@
 use deepcontact_core::Registry;
 
 /// Every provider and solver this build knows: `pgs` (deepcontact-pgs), `psor` and `newton`
-/// (deepcontact-lcp), the baselines (deepcontact-warmstart), `grid` (deepcontact-grid) and,
+/// (deepcontact-lcp), the baselines (deepcontact-warmstart), `grid` (deepcontact-grid), the
+/// contact-graph network `graph` and `graph-file:` (deepcontact-graph) and,
 /// with the `onnx` feature, the CNNs `pressure`, `peak` and `onnx:` (deepcontact-onnx).
 /// The CLI, benches, fuzz targets and tests all use this one; add your own entries to it.
 ///
@@ -18,6 +19,7 @@ pub fn full_registry() -> Registry {
     deepcontact_lcp::register(&mut registry);
     deepcontact_warmstart::register(&mut registry);
     deepcontact_grid::register(&mut registry);
+    deepcontact_graph::register(&mut registry);
     #[cfg(feature = "onnx")]
     deepcontact_onnx::register(&mut registry);
     registry

@@ -105,7 +105,8 @@ fn compare_writes_every_file_and_ignores_the_thread_count() {
             "krylov",
             "best",
             "presolve",
-            "sor"
+            "sor",
+            "graph"
         ]
     );
     assert_same_numbers(&one, &two);
@@ -133,8 +134,8 @@ fn compare_writes_every_file_and_ignores_the_thread_count() {
 
     let dir = scratch_dir("compare");
     let outputs = compare::write_outputs(&one, &dir, true).unwrap();
-    // 5 tables, 5 figures and one per thesis group, each as PNG and SVG.
-    assert_eq!(outputs.files.len(), 5 + 2 * (5 + 6));
+    // 5 tables, 5 figures and one per provider group (FIGURE_GROUPS), each as PNG and SVG.
+    assert_eq!(outputs.files.len(), 5 + 2 * (5 + 7));
     for f in &outputs.files {
         assert!(
             f.is_file() && std::fs::metadata(f).unwrap().len() > 0,
