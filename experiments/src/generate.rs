@@ -8,7 +8,8 @@
 //! velocity, the island, and the contact graph (pairs of contacts sharing a moving body); and
 //! (format 3) each point's velocity-solver row — its bodies, anchors, effective masses,
 //! friction and bias, with the bodies' inverse masses — so that a training script can run the
-//! solver's own sweeps on the recorded problems. The grids can be left out (`grids: false`).
+//! solver's own sweeps on the recorded problems, and the carried impulses as grids (the input
+//! of a residual CNN). The grids can be left out (`grids: false`).
 //! The format is documented in `models/README.md`.
 //! Seeds run in parallel (rayon); each file depends only on its seed, so the output is
 //! deterministic. `--shard K/N` keeps the seeds `i` with `i mod N == K`; seeds whose file already
@@ -117,6 +118,8 @@ struct StepCapture {
     /// Whether the current step has been snapshotted.
     snap: Option<u64>,
     input: Vec<f32>,
+    /// The carried impulses spread onto the label grids (a residual CNN's extra input).
+    carried: Vec<f32>,
     bodies: Vec<BodyCapture>,
     /// This step's points as the providers saw them, by contact id.
     warm: Vec<(ContactId, PointCapture)>,
@@ -186,7 +189,12 @@ impl WarmStart for StepCapture {
             self.snap = Some(ctx.step);
             self.warm.clear();
             if let Some(world) = ctx.world {
-                if let Err(e) = self.features.encode_world(world, &mut self.input) {
+                // The world's contacts are still last step's: their impulses are the carried ones.
+                let encoded = self
+                    .features
+                    .encode_world(world, &mut self.input)
+                    .and_then(|()| self.features.encode_world_labels(world, &mut self.carried));
+                if let Err(e) = encoded {
                     self.error = Some(e.to_string());
                 }
                 self.bodies.clear();
@@ -244,6 +252,7 @@ struct Columns {
     steps: Vec<i64>,
     inputs: Vec<f32>,
     labels: Vec<f32>,
+    carried: Vec<f32>,
     body_mass: Vec<f32>,
     body_inverse_mass: Vec<f32>,
     body_position: Vec<f32>,
@@ -329,6 +338,7 @@ fn simulate_seed(
         error: None,
         snap: None,
         input: vec![0.0; layout.input_len()],
+        carried: vec![0.0; layout.output_len()],
         bodies: Vec::new(),
         warm: Vec::new(),
         previous: Vec::new(),
@@ -359,6 +369,7 @@ fn simulate_seed(
                 .map_err(|e| grid_err(&e))?;
             c.inputs.extend_from_slice(&rec.input);
             c.labels.extend_from_slice(&label);
+            c.carried.extend_from_slice(&rec.carried);
         }
         if c.body_mass.is_empty() {
             c.body_mass.extend(rec.bodies.iter().map(|b| b.mass));
@@ -565,6 +576,7 @@ fn write_seed(
     if config.grids {
         owned.push(f32s("inputs", vec![s, ci, ny, nx], &c.inputs));
         owned.push(f32s("labels", vec![s, co, ny, nx], &c.labels));
+        owned.push(f32s("carried", vec![s, co, ny, nx], &c.carried));
     }
     let views = owned
         .iter()
@@ -634,7 +646,7 @@ pub fn run_generate(
     crate::limits::check_threads(config.threads)?;
     let layout = GridLayout::thesis();
     let per_step = if config.grids {
-        4 * (layout.input_len() + layout.output_len()) as u128
+        4 * (layout.input_len() + 2 * layout.output_len()) as u128
     } else {
         0
     };

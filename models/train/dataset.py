@@ -36,10 +36,11 @@ def contact_mask(inputs: np.ndarray, labels: np.ndarray) -> np.ndarray:
     return ((normal > 1e-6) | (impulse > 0)).astype(np.float32)
 
 
-def load_seeds(data_dir: Path, seeds, every: int = 1, min_step: int = 0):
+def load_seeds(data_dir: Path, seeds, every: int = 1, min_step: int = 0, carried: bool = False):
     """Stacks the grids of `seeds`, keeping every `every`-th recorded step at or after `min_step`.
 
-    Returns (inputs [N,6,61,61], labels [N,2,61,61], mask [N,1,61,61], header of the first file).
+    Returns (inputs [N,6,61,61], labels [N,2,61,61], mask [N,1,61,61], header of the first file);
+    with `carried`, the inputs are followed by the carried-impulse grids ([N,8,61,61], format 3).
     """
     xs, ys, header = [], [], None
     for seed in seeds:
@@ -54,8 +55,13 @@ def load_seeds(data_dir: Path, seeds, every: int = 1, min_step: int = 0):
         with safe_open(str(path), framework="numpy") as f:
             steps = f.get_tensor("steps")
             keep = np.nonzero(steps >= min_step)[0][::every]
-            xs.append(f.get_tensor("inputs")[keep])
+            x = f.get_tensor("inputs")[keep]
+            if carried:
+                if "carried" not in f.keys():
+                    raise ValueError(f"{path}: no carried grids (format 3 with grids needed)")
+                x = np.concatenate([x, f.get_tensor("carried")[keep]], axis=1)
+            xs.append(x)
             ys.append(f.get_tensor("labels")[keep])
     x = np.concatenate(xs).astype(np.float32)
     y = np.concatenate(ys).astype(np.float32)
-    return x, y, contact_mask(x, y), header
+    return x, y, contact_mask(x[:, :6], y), header

@@ -59,9 +59,9 @@ class Pressure(Scaled):
     cost) and c = 8 filters instead of 16 (4x cheaper inference: ~2 ms instead of ~8 ms per step on one core with tract).
     """
 
-    def __init__(self, c: int = 8):
-        super().__init__()
-        self.stem = conv_bn(6, c)
+    def __init__(self, c: int = 8, cin: int = 6):
+        super().__init__(cin=cin)
+        self.stem = conv_bn(cin, c)
         self.scales = nn.ModuleList([nn.Sequential(conv_bn(c, c), conv_bn(c, c)) for _ in range(3)])
         self.head = nn.Sequential(
             conv_bn(c, 8, k=1), conv_bn(8, 4, k=1), nn.Conv2d(4, 2, 1)

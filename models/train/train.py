@@ -1,6 +1,11 @@
 """Train a Pressure or Peak CNN on `deepcontact generate` data and export it to ONNX + model card.
 
     python models/train/train.py --model pressure --data data --out models
+    python models/train/train.py --model pressure --residual --data data --out models
+
+With --residual (Pressure only) the model also reads the carried impulses as two input grids
+(`carried`, format 3) and learns the correction `labels - carried`; the provider adds the
+correction read back at each contact to that contact's exact carried impulse.
 
 Loss: MSE on contact-bearing nodes (masked), in units of the per-channel label RMS; L2 1e-2 on
 conv / dense weights (Adam's weight_decay); Adam 1e-3; batch 40; validation on seeds 100-109
@@ -100,7 +105,7 @@ def export(model: nn.Module, path: Path, opset: int = 17) -> tuple[str, int]:
     import onnx
 
     model = fold_batchnorm(model)
-    dummy = torch.zeros(1, 6, 61, 61)
+    dummy = torch.zeros(1, model.in_scale.shape[1], 61, 61)
     tmp = path.with_suffix(".tmp.onnx")
     exporter = "dynamo"
     try:
@@ -156,7 +161,16 @@ def main() -> None:
     ap.add_argument("--threads", type=int, default=0)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--hardware", default="", help="text for the model card (default: CPU model)")
+    ap.add_argument(
+        "--residual",
+        action="store_true",
+        help="Pressure only: read the carried impulses as 2 more input channels and predict the "
+        "correction to them (labels minus carried); exported as <model>-residual",
+    )
     args = ap.parse_args()
+    if args.residual and args.model != "pressure":
+        ap.error("--residual is implemented for pressure only")
+    name = f"{args.model}-residual" if args.residual else args.model
 
     torch.manual_seed(args.seed)
     np.random.seed(args.seed)
@@ -166,11 +180,14 @@ def main() -> None:
 
     t0 = time.time()
     train_seeds, val_seeds = seeds(args.train_seeds), seeds(args.val_seeds)
-    x, y, m, header = load_seeds(args.data, train_seeds, every=args.every)
-    xv, yv, mv, _ = load_seeds(args.data, val_seeds, every=args.every)
+    x, y, m, header = load_seeds(args.data, train_seeds, every=args.every, carried=args.residual)
+    xv, yv, mv, _ = load_seeds(args.data, val_seeds, every=args.every, carried=args.residual)
+    if args.residual:
+        # Target: the correction to the carried impulses (on the same grids).
+        y, yv = y - x[:, 6:], yv - xv[:, 6:]
     print(f"data: train {x.shape} val {xv.shape} in {time.time() - t0:.1f}s", flush=True)
 
-    model = MODELS[args.model]()
+    model = MODELS[args.model](cin=8) if args.residual else MODELS[args.model]()
     model.in_scale.copy_(torch.from_numpy(rms_scale(x)).view(1, -1, 1, 1))
     out_rms = 1.0 / rms_scale(y)
     model.out_scale.copy_(torch.from_numpy(out_rms.astype(np.float32)).view(1, -1, 1, 1))
@@ -223,7 +240,7 @@ def main() -> None:
                           model.out_scale)
 
     args.out.mkdir(parents=True, exist_ok=True)
-    onnx_path = args.out / f"{args.model}.onnx"
+    onnx_path = args.out / f"{name}.onnx"
     exporter, opset = export(model, onnx_path)
     ort_err = check_with_onnxruntime(model, onnx_path, torch.from_numpy(xv[:8]))
     print(f"exported {onnx_path} ({onnx_path.stat().st_size} bytes, {exporter}); onnxruntime rel. error {ort_err}")
@@ -234,13 +251,18 @@ def main() -> None:
     card = {
         "format": "deepcontact-model-card",
         "format_version": 1,
-        "name": args.model,
+        "name": name,
         "architecture": " ".join((MODELS[args.model].__doc__ or "").split()),
         "parameters": parameter_count(model),
         # Binds the card to this exact file: the Rust loader refuses another model with it.
         "model_sha256": hashlib.sha256(onnx_path.read_bytes()).hexdigest(),
         "grid_layout": header["grid_layout"],
-        "input": {"name": "grids", "shape": [1, 6, 61, 61], "channels": header["input_channels"]},
+        "input": {
+            "name": "grids",
+            "shape": [1, x.shape[1], 61, 61],
+            "channels": header["input_channels"] + (["carried_normal", "carried_tangent"] if args.residual else []),
+        },
+        "residual": args.residual,
         "output": {"name": "impulses", "shape": [1, 2, 61, 61], "channels": header["output_channels"]},
         "training": {
             "data": {
@@ -261,8 +283,8 @@ def main() -> None:
             "input_scale": model.in_scale.view(-1).tolist(), "output_scale": model.out_scale.view(-1).tolist(),
         },
     }
-    (args.out / f"{args.model}.json").write_text(json.dumps(card, indent=2) + "\n")
-    print(f"card {args.out / (args.model + '.json')}: val {best[0]:.5f} after {epochs_run} epochs, {wall:.0f}s")
+    (args.out / f"{name}.json").write_text(json.dumps(card, indent=2) + "\n")
+    print(f"card {args.out / (name + '.json')}: val {best[0]:.5f} after {epochs_run} epochs, {wall:.0f}s")
 
 
 if __name__ == "__main__":

@@ -260,6 +260,21 @@ impl GridEncoder {
         positions: &[Vector],
         impulses: &mut [Impulse],
     ) -> Result<TransferStats, GridError> {
+        let stats = self.decode_signed(output, positions, impulses)?;
+        for imp in impulses.iter_mut() {
+            imp.normal = imp.normal.max(0.0);
+        }
+        Ok(stats)
+    }
+
+    /// [`GridEncoder::decode`] without the clamp: for grids of *corrections* to impulses,
+    /// which may be negative in both channels.
+    pub fn decode_signed(
+        &mut self,
+        output: &[f64],
+        positions: &[Vector],
+        impulses: &mut [Impulse],
+    ) -> Result<TransferStats, GridError> {
         Self::check_len("impulses", positions.len(), impulses.len())?;
         self.back.clear();
         self.back.resize(2 * positions.len(), 0.0);
@@ -267,7 +282,7 @@ impl GridEncoder {
             .transfer
             .grid_to_particles(output, 2, positions, &mut self.back)?;
         for (imp, v) in impulses.iter_mut().zip(self.back.chunks_exact(2)) {
-            *imp = Impulse::new(v[0].max(0.0), v[1]);
+            *imp = Impulse::new(v[0], v[1]);
         }
         Ok(stats)
     }

@@ -17,6 +17,10 @@ pub const CARD_FORMAT: &str = "deepcontact-model-card";
 /// The card format version this crate reads.
 pub const CARD_FORMAT_VERSION: u32 = 1;
 
+/// The input channels a residual model ([`ModelCard::residual`]) reads after the layout's:
+/// the carried impulses, spread onto the grid as the labels are.
+pub const RESIDUAL_CHANNELS: [&str; 2] = ["carried_normal", "carried_tangent"];
+
 /// One tensor of the model as the card describes it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TensorCard {
@@ -58,6 +62,11 @@ pub struct ModelCard {
     /// Training facts (seeds, losses, epochs, wall time, hardware, versions); free-form.
     #[serde(default)]
     pub training: Value,
+    /// Whether the model is residual (default false): it reads the carried impulses as two
+    /// more input channels ([`RESIDUAL_CHANNELS`]) and predicts the *correction* to them, which
+    /// the provider reads back at each contact and adds to that contact's carried impulse.
+    #[serde(default)]
+    pub residual: bool,
 }
 
 /// What this build's grid layout expects of a model.
@@ -154,9 +163,22 @@ impl ModelCard {
         Ok(())
     }
 
-    /// Checks the card against this build's layout: channel names and order, shapes, and the
-    /// grid layout JSON. The error names the first difference.
+    /// What this build's `layout` expects of this card's model: the layout's channels, plus
+    /// [`RESIDUAL_CHANNELS`] for a residual model.
+    pub fn expectation(&self, layout: &LayoutExpectation) -> LayoutExpectation {
+        let mut expected = layout.clone();
+        if self.residual {
+            expected
+                .input_channels
+                .extend(RESIDUAL_CHANNELS.map(String::from));
+        }
+        expected
+    }
+
+    /// Checks the card against this build's layout (with [`Self::expectation`]): channel names
+    /// and order, shapes, and the grid layout JSON. The error names the first difference.
     pub fn check_layout(&self, layout: &LayoutExpectation) -> Result<(), OnnxError> {
+        let layout = &self.expectation(layout);
         check_channels("input", &layout.input_channels, &self.input.channels)?;
         check_channels("output", &layout.output_channels, &self.output.channels)?;
         check_shape("card input", &layout.input_shape(), &self.input.shape)?;

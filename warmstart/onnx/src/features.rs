@@ -99,6 +99,20 @@ impl GridFeatures {
         Self::to_f32(&self.output, out)
     }
 
+    /// Impulses at contact points spread onto the two label grids (as the labels are):
+    /// the carried-impulse input channels of a residual model.
+    pub fn encode_impulses(
+        &mut self,
+        positions: &[Vector],
+        impulses: &[Impulse],
+        out: &mut [f32],
+    ) -> Result<(), OnnxError> {
+        self.encoder
+            .encode_labels(positions, impulses, &mut self.output)
+            .map_err(grid_error)?;
+        Self::to_f32(&self.output, out)
+    }
+
     /// Grid → contact points: the impulses at `positions` from the output grids `grids`
     /// (normals clamped to ≥ 0 by the encoder). A non-finite grid value is an error.
     pub fn decode(
@@ -107,6 +121,29 @@ impl GridFeatures {
         positions: &[Vector],
         impulses: &mut [Impulse],
     ) -> Result<(), OnnxError> {
+        self.load_output(grids)?;
+        self.encoder
+            .decode(&self.output, positions, impulses)
+            .map_err(grid_error)?;
+        Ok(())
+    }
+
+    /// [`Self::decode`] for grids of corrections (a residual model's output): no clamp.
+    pub fn decode_signed(
+        &mut self,
+        grids: &[f32],
+        positions: &[Vector],
+        impulses: &mut [Impulse],
+    ) -> Result<(), OnnxError> {
+        self.load_output(grids)?;
+        self.encoder
+            .decode_signed(&self.output, positions, impulses)
+            .map_err(grid_error)?;
+        Ok(())
+    }
+
+    /// Copies a model's output grids into the encoder's buffer; a non-finite value is an error.
+    fn load_output(&mut self, grids: &[f32]) -> Result<(), OnnxError> {
         if grids.len() != self.output.len() {
             return Err(OnnxError::ShapeMismatch {
                 what: "output grids".into(),
@@ -122,9 +159,6 @@ impl GridFeatures {
             }
             *d = *s as f64;
         }
-        self.encoder
-            .decode(&self.output, positions, impulses)
-            .map_err(grid_error)?;
         Ok(())
     }
 }

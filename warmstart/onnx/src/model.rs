@@ -83,6 +83,8 @@ impl OnnxModel {
                 (model.into(), card, path)
             }
         };
+        // A residual model reads two more channels (checked against the card above).
+        let layout = &card.expectation(layout);
         if bytes.is_empty() {
             return Err(OnnxError::ModelInvalid {
                 path,

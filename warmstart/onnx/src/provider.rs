@@ -70,6 +70,10 @@ impl Default for ProviderOptions {
 /// contact point of the step; each island then takes its points' values by contact id. Without a
 /// world (hand-built problems) the island's own bodies and points are used.
 ///
+/// A residual model ([`crate::card::ModelCard::residual`]) also reads the carried impulses,
+/// spread onto two more input grids, and predicts corrections: each contact's start is its
+/// own carried impulse (exact, not through the grid) plus the correction read back at it.
+///
 /// Negative predicted normal impulses are clamped to 0 (a normal impulse is never negative, and
 /// the world rejects a warm start that has one); tangents are passed as predicted. A non-finite
 /// prediction is an error (the world then starts that island from zeros and counts a fallback).
@@ -83,6 +87,8 @@ pub struct CnnWarmStart {
     ids: Vec<ContactId>,
     positions: Vec<Vector>,
     impulses: Vec<Impulse>,
+    /// The carried impulse of each point in `ids` (read by residual models).
+    carried: Vec<Impulse>,
     /// Predictions of the current step, sorted by contact id.
     predicted: Vec<(ContactId, Impulse)>,
     /// Step index `predicted` belongs to.
@@ -98,13 +104,19 @@ impl CnnWarmStart {
     ) -> Result<Self, OnnxError> {
         let layout = GridLayout::thesis();
         let model = OnnxModel::load(source, options.backend, &features::expectation(&layout))?;
+        let carried_grids = if model.card().residual {
+            layout.output_len()
+        } else {
+            0
+        };
         Ok(Self {
             name: name.to_string(),
-            input: vec![0.0; layout.input_len()],
+            input: vec![0.0; layout.input_len() + carried_grids],
             output: vec![0.0; layout.output_len()],
             ids: Vec::new(),
             positions: Vec::new(),
             impulses: Vec::new(),
+            carried: Vec::new(),
             predicted: Vec::new(),
             step: None,
             model,
@@ -125,6 +137,15 @@ impl CnnWarmStart {
         )
     }
 
+    /// Length of the carried-impulse grids at the end of the input (0 unless residual).
+    fn carried_grids(&self) -> usize {
+        if self.model.card().residual {
+            self.output.len()
+        } else {
+            0
+        }
+    }
+
     /// The model.
     pub fn model(&self) -> &OnnxModel {
         &self.model
@@ -135,7 +156,7 @@ impl CnnWarmStart {
         self.features.layout()
     }
 
-    /// The last input grids (`[6, ny, nx]`).
+    /// The last input grids (`[6, ny, nx]`, `[8, ny, nx]` for a residual model).
     pub fn last_input(&self) -> &[f32] {
         &self.input
     }
@@ -145,18 +166,35 @@ impl CnnWarmStart {
         &self.output
     }
 
-    /// Runs the model on the current input grids and reads the output at `self.positions`
-    /// (ids in `self.ids`), replacing `self.predicted`.
+    /// Runs the model on the current input grids (for a residual model, after spreading
+    /// `self.carried` onto its last two) and reads the output at `self.positions` (ids in
+    /// `self.ids`), replacing `self.predicted`.
     fn predict(&mut self) -> Result<(), WarmStartError> {
         let fail = |e: OnnxError| WarmStartError::Provider(e.to_string());
+        let residual = self.model.card().residual;
+        if residual {
+            let base = self.input.len() - self.output.len();
+            self.features
+                .encode_impulses(&self.positions, &self.carried, &mut self.input[base..])
+                .map_err(fail)?;
+        }
         self.model
             .run(&self.input, &mut self.output)
             .map_err(fail)?;
         self.impulses.clear();
         self.impulses.resize(self.positions.len(), Impulse::ZERO);
-        self.features
-            .decode(&self.output, &self.positions, &mut self.impulses)
-            .map_err(fail)?;
+        if residual {
+            self.features
+                .decode_signed(&self.output, &self.positions, &mut self.impulses)
+                .map_err(fail)?;
+            for (i, c) in self.impulses.iter_mut().zip(&self.carried) {
+                *i = Impulse::new((c.normal + i.normal).max(0.0), c.tangent + i.tangent);
+            }
+        } else {
+            self.features
+                .decode(&self.output, &self.positions, &mut self.impulses)
+                .map_err(fail)?;
+        }
         self.predicted.clear();
         self.predicted
             .extend(self.ids.iter().copied().zip(self.impulses.iter().copied()));
@@ -185,14 +223,24 @@ impl WarmStart for CnnWarmStart {
         match ctx.world {
             Some(world) => {
                 if ctx.island == 0 || self.step != Some(ctx.step) {
+                    let base = self.input.len() - self.carried_grids();
                     self.features
-                        .encode_world(world, &mut self.input)
+                        .encode_world(world, &mut self.input[..base])
                         .map_err(fail)?;
                     self.ids.clear();
                     self.positions.clear();
+                    self.carried.clear();
+                    // The world's contacts are still last step's: its final impulses by id
+                    // are this step's carried impulses (what builtin starts from).
+                    let last = world.contacts();
                     for c in world.raw_contacts() {
                         self.ids.push(c.id);
                         self.positions.push(c.point);
+                        self.carried
+                            .push(match last.binary_search_by(|(k, _)| k.cmp(&c.id)) {
+                                Ok(i) => last[i].1,
+                                Err(_) => Impulse::ZERO,
+                            });
                     }
                     self.predict()?;
                     self.step = Some(ctx.step);
@@ -200,14 +248,17 @@ impl WarmStart for CnnWarmStart {
             }
             None => {
                 let p = ctx.problem;
+                let base = self.input.len() - self.carried_grids();
                 self.features
-                    .encode_problem(p, &mut self.input)
+                    .encode_problem(p, &mut self.input[..base])
                     .map_err(fail)?;
                 self.ids.clear();
                 self.positions.clear();
-                for c in &p.points {
+                self.carried.clear();
+                for (i, c) in p.points.iter().enumerate() {
                     self.ids.push(c.id);
                     self.positions.push(c.point);
+                    self.carried.push(ctx.carried_or_zero(i));
                 }
                 self.predict()?;
                 self.step = None;
