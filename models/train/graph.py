@@ -26,6 +26,16 @@ Seeds: train 0-99, validation 100-109 (early stopping on it; best epoch exported
 `<out>.json`, which also holds a check case: one validation step's inputs and the corrections
 PyTorch computes for them, which the Rust forward pass must reproduce (`cargo test -p
 deepcontact-graph`). `--check-only` rewrites only that case for an existing model.
+
+ONNX: `--check-only --onnx [PATH]` loads the existing model and writes only an ONNX export of it
+(default `<out>.onnx`; the weights and the card are left alone); `--onnx` after training writes
+it too. The export (`export_onnx`, opset 17, one file) computes the same correction with dense
+incidence matrices instead of `index_add`: inputs `features` [C, 15] (raw, standardised inside),
+`incidence_a`, `incidence_b` [B, C] (1 where contact c's body A / B is body b and that body
+moves, else 0), output `corrections` [C, 2] (N·s); C and B are dynamic. Before writing, the
+wrapper is checked against `ContactGraph.correction` on validation steps (max difference 1e-5).
+
+    python models/train/graph.py --data data3 --check-only --onnx --out models/graph
 """
 
 from __future__ import annotations
@@ -233,6 +243,136 @@ class ContactGraph(nn.Module):
         return self.head(h) * scale
 
 
+class DenseContactGraph(nn.Module):
+    """`ContactGraph.correction` with dense incidence matrices instead of `index_add` (for ONNX):
+    a body's sums over its contacts are `incidence @ x`, a contact reads its body's sums back
+    with `incidence.T @ sums`. Static bodies have zero rows, so they neither send nor receive."""
+
+    def __init__(self, model: ContactGraph, mean, std, scale: float):
+        super().__init__()
+        self.model = model
+        self.register_buffer("mean", torch.as_tensor(mean, dtype=torch.float32).clone())
+        self.register_buffer("std", torch.as_tensor(std, dtype=torch.float32).clone())
+        self.scale = float(scale)
+
+    def forward(self, features, incidence_a, incidence_b):
+        """Corrections `(dn, dt)` in N·s, [C, 2], from raw features [C, 15] and the
+        incidence matrices [B, C]."""
+        model, k = self.model, self.model.k
+        x = (features - self.mean) / self.std
+        nx, ny = features[:, 3:4], features[:, 4:5]
+        # Tangent t = (-ny, nx).
+        ta, tb = incidence_a.t(), incidence_b.t()
+        h = torch.relu(model.encoder(x))
+        for message, update in zip(model.message, model.update):
+            m = message(h)
+            s, qn, qt = m[:, :k], m[:, k : 2 * k], m[:, 2 * k :]
+            # Impulse-like vectors qn n + qt t, [C, K] per component: + on B, - on A.
+            vx = qn * nx - qt * ny
+            vy = qn * ny + qt * nx
+            sums = incidence_a @ s + incidence_b @ s
+            sx = incidence_b @ vx - incidence_a @ vx
+            sy = incidence_b @ vy - incidence_a @ vy
+            ax, ay = ta @ sx, ta @ sy
+            bx, by = tb @ sx, tb @ sy
+            read = torch.cat(
+                [
+                    ta @ sums,
+                    tb @ sums,
+                    ax * nx + ay * ny,
+                    -ax * ny + ay * nx,
+                    bx * nx + by * ny,
+                    -bx * ny + by * nx,
+                ],
+                dim=1,
+            )
+            h = h + torch.relu(update(torch.cat([h, read], dim=1)))
+        return model.head(h) * self.scale
+
+
+def incidences(bodies: np.ndarray, moving: np.ndarray, nb: int) -> tuple[np.ndarray, np.ndarray]:
+    """The [B, C] incidence matrices of `DenseContactGraph` for contacts `bodies` [C, 2] and
+    per-contact moving flags `moving` [C, 2] (as `load_steps` writes them)."""
+    c = np.arange(len(bodies))
+    out = []
+    for side in (0, 1):
+        m = np.zeros((nb, len(bodies)), dtype=np.float32)
+        m[bodies[:, side], c] = moving[:, side] > 0
+        out.append(m)
+    return out[0], out[1]
+
+
+def export_onnx(model: ContactGraph, mean, std, scale: float, path: Path) -> DenseContactGraph:
+    """Writes `DenseContactGraph(model, ...)` to `path` as ONNX (opset 17, one file, C and B
+    dynamic) and returns the wrapper. Runs `onnx.checker` if `onnx` is importable."""
+    wrapper = DenseContactGraph(model, mean, std, scale).eval()
+    # Distinct, non-trivial sizes so that neither exporter specialises C or B.
+    gen = torch.Generator().manual_seed(0)
+    contacts, bodies = 7, 5
+    features = torch.randn(contacts, len(FEATURES), generator=gen)
+    ends = torch.randint(0, bodies, (contacts, 2), generator=gen)
+    ia = torch.zeros(bodies, contacts)
+    ib = torch.zeros(bodies, contacts)
+    ia[ends[:, 0], torch.arange(contacts)] = 1.0
+    ib[ends[:, 1], torch.arange(contacts)] = 1.0
+    example = (features, ia, ib)
+    names = dict(input_names=["features", "incidence_a", "incidence_b"], output_names=["corrections"])
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp.onnx")
+    exporter = "dynamo"
+    try:
+        c, b = torch.export.Dim("contacts"), torch.export.Dim("bodies")
+        torch.onnx.export(
+            wrapper, example, str(tmp), opset_version=17, dynamo=True, external_data=False,
+            dynamic_shapes=({0: c}, {0: b, 1: c}, {0: b, 1: c}), **names,
+        )
+    except Exception as e:  # older torch / exporter quirks: fall back to the TorchScript exporter
+        print(f"dynamo export failed ({e}); using the TorchScript exporter", flush=True)
+        exporter = "torchscript"
+        torch.onnx.export(
+            wrapper, example, str(tmp), opset_version=17, dynamo=False, do_constant_folding=True,
+            dynamic_axes={"features": {0: "contacts"}, "incidence_a": {0: "bodies", 1: "contacts"},
+                          "incidence_b": {0: "bodies", 1: "contacts"}, "corrections": {0: "contacts"}},
+            **names,
+        )
+    try:
+        import onnx
+    except ImportError:
+        tmp.replace(path)
+        print(f"wrote {path} ({exporter} exporter; onnx not importable, not checked)")
+        return wrapper
+    proto = onnx.load(str(tmp), load_external_data=True)
+    onnx.checker.check_model(proto, full_check=True)
+    onnx.save(proto, str(path), save_as_external_data=False)
+    tmp.unlink(missing_ok=True)
+    for extra in list(path.parent.glob(tmp.name + ".data")) + list(path.parent.glob(path.name + ".data")):
+        extra.unlink()
+    opset = next((o.version for o in proto.opset_import if o.domain in ("", "ai.onnx")), None)
+    print(f"wrote {path} ({path.stat().st_size} bytes, {exporter} exporter, opset {opset}); onnx.checker passed")
+    return wrapper
+
+
+def check_dense(wrapper: DenseContactGraph, model: ContactGraph, mean, std, scale, args, tolerance=1e-5) -> float:
+    """Largest |wrapper - model.correction| (N·s) over every 5th validation step; raises if
+    above `tolerance`."""
+    worst, worst_size, steps = 0.0, 0.0, 0
+    with torch.no_grad():
+        for step in load_steps(args.data, seeds(args.validation_seeds), 5, 0):
+            g = batch([step])
+            expected = model.correction(g, torch.tensor(mean), torch.tensor(std), scale)
+            ia, ib = incidences(step["bodies"], step["moving"], step["nb"])
+            got = wrapper(g["x"], torch.from_numpy(ia), torch.from_numpy(ib))
+            worst = max(worst, (got - expected).abs().max().item())
+            worst_size = max(worst_size, expected.abs().max().item())
+            steps += 1
+    print(f"dense wrapper vs ContactGraph.correction on {steps} validation steps: max |difference| "
+          f"{worst:.3g} N·s (largest correction {worst_size:.3g} N·s)")
+    if not worst <= tolerance:
+        raise ValueError(f"dense wrapper differs from the model by {worst} > {tolerance}")
+    return worst
+
+
 def pgs_sweeps(g: dict, start: torch.Tensor, sweeps: int) -> torch.Tensor:
     """`sweeps` projected Gauss-Seidel sweeps from `start` on the recorded rows (friction row,
     then normal row, per point; colour by colour), differentiable in `start`."""
@@ -312,10 +452,15 @@ def main() -> None:
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--check-only", action="store_true", help="only (re)write the card's check case")
+    p.add_argument("--onnx", nargs="?", const=True, default=None, metavar="PATH",
+                   help="also write an ONNX export (default <out>.onnx); with --check-only, only that")
     args = p.parse_args()
     if args.check_only:
         model, mean, std, scale = load_model(args.out.with_suffix(".safetensors"))
-        write_check(model, args, mean, std, scale)
+        if args.onnx:
+            write_onnx(model, args, mean, std, scale)
+        else:
+            write_check(model, args, mean, std, scale)
         return
     torch.manual_seed(args.seed)
     torch.set_num_threads(args.threads)
@@ -358,6 +503,17 @@ def main() -> None:
             break
     model.load_state_dict(best_state)
     export(model, args, mean, std, scale, best, carried_only, best_epoch, history, len(train), time.time() - began)
+    if args.onnx:
+        write_onnx(model, args, mean, std, scale)
+
+
+def write_onnx(model, args, mean, std, scale):
+    """The ONNX export at `--onnx PATH` (default `<out>.onnx`), after checking the dense
+    wrapper against the model on validation steps."""
+    model.eval()
+    path = args.out.with_suffix(".onnx") if args.onnx is True else Path(args.onnx)
+    check_dense(DenseContactGraph(model, mean, std, scale).eval(), model, mean, std, scale, args)
+    export_onnx(model, mean, std, scale, path)
 
 
 def export(model, args, mean, std, scale, best, carried_only, best_epoch, history, n_train, seconds):
@@ -428,7 +584,8 @@ def write_check(model, args, mean, std, scale, contacts=(20, 80)):
     local = local.reshape(-1, 2)
     g = batch([{**step, "bodies": local, "nb": len(used)}])
     with torch.no_grad():
-        corrections = model.correction(g, torch.tensor(mean), torch.tensor(std), scale)
+        f32 = lambda a: torch.tensor(a, dtype=torch.float32)  # noqa: E731
+        corrections = model.correction(g, f32(mean), f32(std), scale)
     moving = np.zeros(len(used), dtype=bool)
     moving[local[:, 0]] = step["moving"][:, 0] > 0
     moving[local[:, 1]] = step["moving"][:, 1] > 0

@@ -8,8 +8,9 @@
 //! - [`model`]: the architecture ([`FEATURES`], message passing over contact–body edges)
 //!   and the forward pass, mirroring `ContactGraph` in `models/train/graph.py`.
 //! - [`card`]: model cards (SHA-256, architecture, training seeds and loss).
-//! - [`GraphWarmStart`]: the provider; [`register`] adds `graph` (the shipped model,
-//!   `models/graph.safetensors`, built into the crate) and `graph:path=...` to a registry.
+//! - [`GraphWarmStart`]: the provider ([`point_inputs`]: its per-point model inputs);
+//!   [`register`] adds `graph` (the shipped model, `models/graph.safetensors`, built into the
+//!   crate) and `graph:path=...` to a registry.
 //!
 //! ```
 //! let mut registry = deepcontact_core::Registry::empty();
@@ -27,5 +28,5 @@ mod registry;
 
 pub use error::GraphError;
 pub use model::{Architecture, ContactGraphModel, FEATURES, PointInput, Scratch};
-pub use provider::GraphWarmStart;
+pub use provider::{GraphWarmStart, point_inputs};
 pub use registry::register;

@@ -88,6 +88,18 @@ impl GraphWarmStart {
     }
 }
 
+/// The model's inputs for every point of the context's problem, in point order, into `out`
+/// (cleared first): the raw features in [`crate::FEATURES`] order and the point's bodies
+/// (indices into `ctx.problem.bodies`), exactly as [`GraphWarmStart`] computes them. A body
+/// moves, for [`ContactGraphModel::corrections`], when its inverse mass is positive.
+///
+/// Only `ctx.problem` and `ctx.carried` are read, so a recorded island gives the same inputs
+/// when replayed through [`WarmStartContext::new`].
+pub fn point_inputs(ctx: &WarmStartContext<'_>, out: &mut Vec<PointInput>) {
+    out.clear();
+    out.extend((0..ctx.problem.len()).map(|i| point_input(ctx, i)));
+}
+
 /// The model's input for point `i` of the context's problem (features in
 /// [`crate::FEATURES`] order).
 fn point_input(ctx: &WarmStartContext<'_>, i: usize) -> PointInput {
@@ -135,9 +147,7 @@ impl WarmStart for GraphWarmStart {
         out: &mut [Impulse],
     ) -> Result<(), WarmStartError> {
         let problem = ctx.problem;
-        self.points.clear();
-        self.points
-            .extend((0..problem.len()).map(|i| point_input(ctx, i)));
+        point_inputs(ctx, &mut self.points);
         self.moving.clear();
         self.moving
             .extend(problem.bodies.iter().map(|b| b.inv_mass > 0.0));
