@@ -2,7 +2,8 @@
 //!
 //! CNN warm-start providers: each step, the world is spread onto grids (particles → grid),
 //! an ONNX model predicts impulse grids, and those are read back at the contact points
-//! (grid → particles). Shipped models: [`PRESSURE`] and [`PEAK`] (in `models/`, with model
+//! (grid → particles). Shipped models: [`PRESSURE`], [`PEAK`] and the residual
+//! [`PRESSURE_RESIDUAL`] (in `models/`, with model
 //! cards); any other model with a card loads through `onnx:path=...`.
 //!
 //! Backends (see [`backend`]): tract (pure Rust, default) or ONNX Runtime (`load-dynamic`).
@@ -35,5 +36,7 @@ pub use card::{LayoutExpectation, ModelCard, TensorCard, sha256_hex};
 pub use error::OnnxError;
 pub use features::{GridFeatures, GridLayout};
 pub use model::{ModelSource, OnnxModel};
-pub use provider::{CnnWarmStart, PEAK, PRESSURE, ProviderOptions, ShippedModel};
+pub use provider::{
+    CnnWarmStart, PEAK, PRESSURE, PRESSURE_RESIDUAL, ProviderOptions, ShippedModel,
+};
 pub use registry::register;

@@ -23,6 +23,12 @@ pub const PRESSURE: ShippedModel = ShippedModel {
     name: "pressure",
     file: "pressure.onnx",
 };
+/// The shipped residual Pressure model (`models/pressure-residual.onnx`): reads the carried
+/// impulses as two more grids and predicts the correction to them.
+pub const PRESSURE_RESIDUAL: ShippedModel = ShippedModel {
+    name: "pressure-residual",
+    file: "pressure-residual.onnx",
+};
 /// The shipped Peak model (`models/peak.onnx`).
 pub const PEAK: ShippedModel = ShippedModel {
     name: "peak",

@@ -6,7 +6,9 @@ use deepcontact_core::registry::{Params, ProviderInfo, Registry, SpecError};
 
 use crate::backend::Backend;
 use crate::model::ModelSource;
-use crate::provider::{CnnWarmStart, PEAK, PRESSURE, ProviderOptions, ShippedModel};
+use crate::provider::{
+    CnnWarmStart, PEAK, PRESSURE, PRESSURE_RESIDUAL, ProviderOptions, ShippedModel,
+};
 
 fn options(p: &mut Params<'_>) -> Result<ProviderOptions, SpecError> {
     let mut options = ProviderOptions::default();
@@ -43,9 +45,10 @@ fn shipped(registry: &mut Registry, model: ShippedModel, help: &str) {
     );
 }
 
-/// Registers `pressure`, `peak` (the shipped models in `models/`) and `onnx:path=...` (any
-/// model with a card). All take `backend=tract|onnxruntime`; `onnx` also takes `card=...`
-/// (default: the model path with `.json`) and `name=...` (the name shown in reports).
+/// Registers `pressure`, `peak`, `pressure-residual` (the shipped models in `models/`) and
+/// `onnx:path=...` (any model with a card). All take `backend=tract|onnxruntime`; `onnx` also
+/// takes `card=...` (default: the model path with `.json`) and `name=...` (the name shown in
+/// reports).
 pub fn register(registry: &mut Registry) {
     shipped(
         registry,
@@ -56,6 +59,11 @@ pub fn register(registry: &mut Registry) {
         registry,
         PEAK,
         "CNN (Peak, conv blocks + multi-scale sum + small dense layers) on 61x61 grids via ONNX; backend=tract|onnxruntime",
+    );
+    shipped(
+        registry,
+        PRESSURE_RESIDUAL,
+        "residual CNN (Pressure on 8 grids: the world and the carried impulses) predicting the correction to the carried impulses; backend=tract|onnxruntime",
     );
     registry.register_provider(
         "onnx",

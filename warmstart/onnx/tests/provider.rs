@@ -399,3 +399,112 @@ fn shipped_models_load_and_run_on_a_pile_step() {
         assert_eq!(report.fallbacks, 0, "{} fell back to zeros", shipped.name);
     }
 }
+
+/// The residual model reads the carried impulses as two more grids (its card says so, and a
+/// card that denies it is refused) and corrects them: on a settled pile its starts stay near
+/// the carried impulses (a correction, not a new prediction) without being them.
+#[test]
+fn residual_model_corrects_the_carried_impulses() {
+    if cannot_run() {
+        return;
+    }
+    let shipped = deepcontact_onnx::PRESSURE_RESIDUAL;
+    let card_path = shipped.path().with_extension("json");
+    let card = deepcontact_onnx::ModelCard::load(&card_path).unwrap();
+    assert!(card.residual);
+    assert_eq!(card.input.shape, vec![1, 8, 61, 61]);
+    // The same model with a card that denies the carried channels is refused.
+    let mut denied: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&card_path).unwrap()).unwrap();
+    denied["residual"] = false.into();
+    let denied_path = std::env::temp_dir().join(format!("dc-denied-{}.json", std::process::id()));
+    std::fs::write(&denied_path, denied.to_string()).unwrap();
+    let e = CnnWarmStart::new(
+        "denied",
+        ModelSource::Files {
+            model: &shipped.path(),
+            card: Some(&denied_path),
+        },
+        ProviderOptions { backend: backend() },
+    )
+    .unwrap_err();
+    std::fs::remove_file(&denied_path).ok();
+    assert!(
+        matches!(
+            e,
+            OnnxError::ChannelCount { .. } | OnnxError::ShapeMismatch { .. }
+        ),
+        "{e}"
+    );
+
+    let mut world = deepcontact_core::scene::pile(12345, 100)
+        .unwrap()
+        .build(WorldSettings {
+            guard: GuardPolicy::Error,
+            ..WorldSettings::default()
+        })
+        .unwrap();
+    let mut solver = deepcontact_pgs::PgsSolver::default();
+    let mut position = deepcontact_pgs::PgsPositionSolver::default();
+    for _ in 0..150 {
+        world
+            .step(
+                &mut deepcontact_core::CarriedWarmStart,
+                &mut solver,
+                &mut position,
+            )
+            .unwrap();
+    }
+    let inner = CnnWarmStart::shipped(shipped, ProviderOptions { backend: backend() }).unwrap();
+    let mut provider = Recorded {
+        inner,
+        starts: Vec::new(),
+        carried: Vec::new(),
+    };
+    let report = world
+        .step(&mut provider, &mut solver, &mut position)
+        .unwrap();
+    assert_eq!(report.fallbacks, 0);
+    assert_eq!(provider.inner.last_input().len(), 8 * 61 * 61);
+    let carried_grid: f32 = provider.inner.last_input()[6 * 61 * 61..7 * 61 * 61]
+        .iter()
+        .sum();
+    assert!(
+        carried_grid > 0.0,
+        "the carried normal impulses are on the grid"
+    );
+    let n = provider.starts.len() as f64;
+    assert!(n > 50.0);
+    let moved: f64 = provider
+        .starts
+        .iter()
+        .zip(&provider.carried)
+        .map(|(s, c)| (s.normal - c.normal).abs())
+        .sum::<f64>()
+        / n;
+    let load: f64 = provider.carried.iter().map(|c| c.normal).sum::<f64>() / n;
+    assert!(moved > 0.0 && moved < load, "moved {moved}, carried {load}");
+}
+
+/// A provider wrapper keeping the starts and the carried impulses it was given.
+struct Recorded {
+    inner: CnnWarmStart,
+    starts: Vec<Impulse>,
+    carried: Vec<Impulse>,
+}
+
+impl WarmStart for Recorded {
+    fn name(&self) -> &str {
+        self.inner.name()
+    }
+    fn warm_start(
+        &mut self,
+        ctx: &WarmStartContext<'_>,
+        out: &mut [Impulse],
+    ) -> Result<(), WarmStartError> {
+        self.inner.warm_start(ctx, out)?;
+        self.starts.extend_from_slice(out);
+        self.carried.extend(ctx.carried_impulses());
+        Ok(())
+    }
+}
