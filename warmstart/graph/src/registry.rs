@@ -19,7 +19,7 @@ pub fn register(registry: &mut Registry) {
     registry.register_provider(
         "graph",
         ProviderInfo::new(
-            "carried impulses + a contact-graph network's correction (3 rounds of message passing, plain Rust forward pass; models/graph.safetensors)",
+            "carried impulses + a contact-graph network's correction (8 rounds of message passing, plain Rust forward pass; models/graph.safetensors)",
         )
         .learned(),
         |_, _| Ok(Box::new(GraphWarmStart::shipped().map_err(|e| build_error("graph", e))?)),
