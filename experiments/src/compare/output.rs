@@ -194,7 +194,8 @@ pub fn summary_md(results: &Results, rows: &[Summary]) -> String {
         s,
         "\nIterations are those of a step's slowest island. Steps without contacts ({} of {} per warm start here) \
          are left out of the iteration and MSE columns and counted in mean_contacts and the times. Times are means \
-         per step, measured while the worlds ran in parallel; speedups are ratios of total step time against the \
+         per step, measured with every warm start's world of a seed stepped in turn (so a slow spell of the \
+         machine touches them all alike) and the seeds in parallel; speedups are ratios of total step time against the \
          same solver's `none` / `builtin`. The `copy` providers' warm-start time includes the oracle's own solve. \
          natural_residual_mean / _max: the natural-map residual of the final impulses (N·s, largest over a step's \
          islands), mean and maximum over contact steps: where the solver stopped, beside how long it took.",

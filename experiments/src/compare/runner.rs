@@ -1,4 +1,10 @@
-//! Runs every (solver, warm start, seed) world in parallel, results in job order.
+//! Runs every (solver, warm start, seed) world, results in (solver, warm start, seed) order.
+//!
+//! One job per (solver, seed), jobs in parallel: a job builds one world per warm start and
+//! steps them in lockstep (step t of every provider's world, then step t + 1). A machine that
+//! speeds up or slows down during a run (turbo, other load) then changes every provider's step
+//! times alike, so the times of one run compare provider against provider; run one provider
+//! after another and a slow spell lands on whichever ran then.
 
 use std::time::Instant;
 
@@ -46,16 +52,13 @@ pub fn run_experiment_until(
         scene::by_name(&config.scene, seed, config.bodies)?;
     }
 
-    let jobs: Vec<(usize, usize, u64)> = (0..config.solvers.len())
-        .flat_map(|s| {
-            (0..config.warm_starts.len())
-                .flat_map(move |w| config.seeds.iter().map(move |&k| (s, w, k)))
-        })
+    let jobs: Vec<(usize, u64)> = (0..config.solvers.len())
+        .flat_map(|s| config.seeds.iter().map(move |&k| (s, k)))
         .collect();
     let threads = crate::threads(config.threads);
     let pool = crate::pool(threads)?;
 
-    let total = jobs.len() as u64 * config.steps;
+    let total = (jobs.len() * config.warm_starts.len()) as u64 * config.steps;
     let bar = if config.progress {
         ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr())
     } else {
@@ -69,15 +72,23 @@ pub fn run_experiment_until(
 
     let t0 = Instant::now();
     // `collect` keeps the job order whatever thread ran which job.
-    let runs: Vec<Result<Run, ExperimentError>> = pool.install(|| {
+    let jobs: Vec<Result<Vec<Run>, ExperimentError>> = pool.install(|| {
         jobs.par_iter()
             .with_max_len(1)
-            .map(|&(s, w, seed)| run_world(config, registry, (s, w, seed), stop, &bar))
+            .map(|&(s, seed)| run_lockstep(config, registry, (s, seed), stop, &bar))
             .collect()
     });
     let wall_seconds = t0.elapsed().as_secs_f64();
     bar.finish_and_clear();
-    let runs = runs.into_iter().collect::<Result<Vec<_>, _>>()?;
+    let mut runs: Vec<Run> = jobs
+        .into_iter()
+        .collect::<Result<Vec<_>, _>>()?
+        .into_iter()
+        .flatten()
+        .collect();
+    // Solver-major, then warm start, then seed (the order of `config.seeds`).
+    let seed_order = |seed: u64| config.seeds.iter().position(|&k| k == seed);
+    runs.sort_by_key(|r| (r.solver, r.warm_start, seed_order(r.seed)));
     Ok(Results {
         config: config.clone(),
         solvers: config.solver_labels(),
@@ -88,40 +99,67 @@ pub fn run_experiment_until(
     })
 }
 
-fn run_world(
+/// One provider's world of a lockstep job, with its own solvers.
+struct Lane {
+    world: deepcontact_core::World,
+    provider: Box<dyn deepcontact_core::WarmStart>,
+    velocity: Box<dyn deepcontact_core::VelocitySolver>,
+    position: PgsPositionSolver,
+    run: Run,
+}
+
+/// Every warm start's world of `(solver, seed)`, stepped in lockstep (see the module docs).
+fn run_lockstep(
     config: &Config,
     registry: &Registry,
-    (solver, warm_start, seed): (usize, usize, u64),
+    (solver, seed): (usize, u64),
     stop: &(dyn Fn() -> bool + Sync),
     bar: &ProgressBar,
-) -> Result<Run, ExperimentError> {
-    let mut world = scene::by_name(&config.scene, seed, config.bodies)?.build(config.world)?;
-    let mut provider = registry.provider_from_spec(&config.warm_starts[warm_start])?;
-    let mut velocity = registry.solver_from_spec(&config.solvers[solver])?;
-    let mut position = PgsPositionSolver::new();
-    let mut run = Run {
-        solver,
-        warm_start,
-        seed,
-        steps: Vec::with_capacity(config.steps as usize),
-        curves: Vec::with_capacity(config.steps as usize),
-        diagnostics: Vec::new(),
-    };
+) -> Result<Vec<Run>, ExperimentError> {
+    let mut lanes = (0..config.warm_starts.len())
+        .map(|warm_start| -> Result<Lane, ExperimentError> {
+            Ok(Lane {
+                world: scene::by_name(&config.scene, seed, config.bodies)?.build(config.world)?,
+                provider: registry.provider_from_spec(&config.warm_starts[warm_start])?,
+                velocity: registry.solver_from_spec(&config.solvers[solver])?,
+                position: PgsPositionSolver::new(),
+                run: Run {
+                    solver,
+                    warm_start,
+                    seed,
+                    steps: Vec::with_capacity(config.steps as usize),
+                    curves: Vec::with_capacity(config.steps as usize),
+                    diagnostics: Vec::new(),
+                },
+            })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     for _ in 0..config.steps {
-        if stop() {
-            return Err(ExperimentError::Stopped);
+        for lane in &mut lanes {
+            if stop() {
+                return Err(ExperimentError::Stopped);
+            }
+            let report = lane.world.step(
+                lane.provider.as_mut(),
+                lane.velocity.as_mut(),
+                &mut lane.position,
+            )?;
+            lane.run.steps.push(StepRecord::from(&report));
+            lane.run.curves.push(if report.contacts > 0 {
+                report.residual_curve
+            } else {
+                Vec::new()
+            });
+            bar.inc(1);
         }
-        let report = world.step(&mut provider, &mut velocity, &mut position)?;
-        run.steps.push(StepRecord::from(&report));
-        run.curves.push(if report.contacts > 0 {
-            report.residual_curve
-        } else {
-            Vec::new()
-        });
-        bar.inc(1);
     }
-    run.diagnostics = provider.diagnostics();
-    Ok(run)
+    Ok(lanes
+        .into_iter()
+        .map(|mut lane| {
+            lane.run.diagnostics = lane.provider.diagnostics();
+            lane.run
+        })
+        .collect())
 }
 
 #[cfg(test)]
@@ -147,9 +185,10 @@ mod tests {
         let stop = || asked.fetch_add(1, Ordering::SeqCst) >= 3;
         let err = run_experiment_until(&small(), &crate::full_registry(), &stop).unwrap_err();
         assert!(matches!(err, ExperimentError::Stopped), "{err}");
-        // One thread, jobs in order: the first world asked four times (three steps ran), each
-        // of the three other worlds once, before its first step.
-        assert_eq!(asked.load(Ordering::SeqCst), 4 + 3);
+        // One thread, jobs in order, the warm starts of a seed in lockstep: asked before each
+        // of steps 0 and 1 of both worlds of the first seed (three steps ran, the fourth
+        // question stopped it); the second seed's job then stops at its first question.
+        assert_eq!(asked.load(Ordering::SeqCst), 4 + 1);
     }
 
     #[test]
