@@ -121,10 +121,10 @@ impl GridFeatures {
         positions: &[Vector],
         impulses: &mut [Impulse],
     ) -> Result<(), OnnxError> {
-        self.load_output(grids)?;
-        self.encoder
-            .decode(&self.output, positions, impulses)
-            .map_err(grid_error)?;
+        self.decode_signed(grids, positions, impulses)?;
+        for i in impulses.iter_mut() {
+            i.normal = i.normal.max(0.0);
+        }
         Ok(())
     }
 

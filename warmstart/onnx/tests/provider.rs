@@ -367,24 +367,7 @@ fn shipped_models_load_and_run_on_a_pile_step() {
     deepcontact_pgs::register(&mut registry);
     deepcontact_warmstart::register(&mut registry);
     deepcontact_onnx::register(&mut registry);
-    let mut world = deepcontact_core::scene::pile(12345, 100)
-        .unwrap()
-        .build(WorldSettings {
-            guard: GuardPolicy::Error,
-            ..WorldSettings::default()
-        })
-        .unwrap();
-    let mut solver = deepcontact_pgs::PgsSolver::default();
-    let mut position = deepcontact_pgs::PgsPositionSolver::default();
-    for _ in 0..60 {
-        world
-            .step(
-                &mut deepcontact_core::CarriedWarmStart,
-                &mut solver,
-                &mut position,
-            )
-            .unwrap();
-    }
+    let (mut world, mut solver, mut position) = pile_after(60);
     for shipped in [deepcontact_onnx::PRESSURE, deepcontact_onnx::PEAK] {
         let card =
             deepcontact_onnx::ModelCard::load(&shipped.path().with_extension("json")).unwrap();
@@ -437,24 +420,7 @@ fn residual_model_corrects_the_carried_impulses() {
         "{e}"
     );
 
-    let mut world = deepcontact_core::scene::pile(12345, 100)
-        .unwrap()
-        .build(WorldSettings {
-            guard: GuardPolicy::Error,
-            ..WorldSettings::default()
-        })
-        .unwrap();
-    let mut solver = deepcontact_pgs::PgsSolver::default();
-    let mut position = deepcontact_pgs::PgsPositionSolver::default();
-    for _ in 0..150 {
-        world
-            .step(
-                &mut deepcontact_core::CarriedWarmStart,
-                &mut solver,
-                &mut position,
-            )
-            .unwrap();
-    }
+    let (mut world, mut solver, mut position) = pile_after(150);
     let inner = CnnWarmStart::shipped(shipped, ProviderOptions { backend: backend() }).unwrap();
     let mut provider = Recorded {
         inner,
@@ -484,6 +450,36 @@ fn residual_model_corrects_the_carried_impulses() {
         / n;
     let load: f64 = provider.carried.iter().map(|c| c.normal).sum::<f64>() / n;
     assert!(moved > 0.0 && moved < load, "moved {moved}, carried {load}");
+}
+
+/// The thesis pile (seed 12345) after `steps` builtin steps, with its solvers; a provider
+/// failure is an error, not a fallback.
+fn pile_after(
+    steps: usize,
+) -> (
+    deepcontact_core::World,
+    deepcontact_pgs::PgsSolver,
+    deepcontact_pgs::PgsPositionSolver,
+) {
+    let mut world = deepcontact_core::scene::pile(12345, 100)
+        .unwrap()
+        .build(WorldSettings {
+            guard: GuardPolicy::Error,
+            ..WorldSettings::default()
+        })
+        .unwrap();
+    let mut solver = deepcontact_pgs::PgsSolver::default();
+    let mut position = deepcontact_pgs::PgsPositionSolver::default();
+    for _ in 0..steps {
+        world
+            .step(
+                &mut deepcontact_core::CarriedWarmStart,
+                &mut solver,
+                &mut position,
+            )
+            .unwrap();
+    }
+    (world, solver, position)
 }
 
 /// A provider wrapper keeping the starts and the carried impulses it was given.
