@@ -67,8 +67,8 @@ pub struct ProviderCase {
 }
 
 /// One case per registered provider, in registry order. `onnx` (which needs a model path)
-/// runs the small test model ([`tiny_model_path`]); every other provider runs with its
-/// defaults. A case may still fail to build (e.g. `pressure` and `peak` when `models/` holds
+/// runs the small test model ([`tiny_model_path`]), `graph-file` the shipped graph model's
+/// file; every other provider runs with its defaults. A case may still fail to build (e.g. `pressure` and `peak` when `models/` holds
 /// no exported model): callers skip it and say why.
 pub fn provider_cases(registry: &Registry) -> Vec<ProviderCase> {
     registry
@@ -76,6 +76,13 @@ pub fn provider_cases(registry: &Registry) -> Vec<ProviderCase> {
         .map(|(name, _)| {
             let spec = match name {
                 "onnx" => format!("onnx:path={},name=onnx-tiny", tiny_model_path().display()),
+                // The shipped graph model, loaded from its file (what `graph` has built in).
+                "graph-file" => format!(
+                    "graph-file:path={}",
+                    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+                        .join("../models/graph.safetensors")
+                        .display()
+                ),
                 _ => name.to_string(),
             };
             ProviderCase {
@@ -354,8 +361,13 @@ mod tests {
         let registry = registry();
         let cases = provider_cases(&registry);
         assert_eq!(cases.len(), registry.providers().count());
-        for name in ["none", "builtin", "copy", "grid", "onnx"] {
+        for name in ["none", "builtin", "copy", "grid", "onnx", "graph"] {
             assert!(cases.iter().any(|c| c.name == name), "{name}");
+        }
+        // The providers that need a file get one that loads.
+        for name in ["onnx", "graph-file"] {
+            let case = cases.iter().find(|c| c.name == name).unwrap();
+            assert!(registry.build_provider(&case.spec).is_ok(), "{}", case.spec);
         }
     }
 }
