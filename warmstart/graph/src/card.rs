@@ -31,17 +31,23 @@ pub struct GraphCard {
 impl GraphCard {
     /// Parses a card (`path` labels errors).
     pub fn parse(text: &str, path: &Path) -> Result<Self, GraphError> {
-        let card: Self = serde_json::from_str(text).map_err(|e| GraphError::Card {
+        let bad = |reason: String| GraphError::Card {
             path: path.to_path_buf(),
-            reason: e.to_string(),
-        })?;
-        if card.format != CARD_FORMAT {
-            return Err(GraphError::Card {
-                path: path.to_path_buf(),
-                reason: format!("format `{}`, not `{CARD_FORMAT}`", card.format),
-            });
+            reason,
+        };
+        // The format first, so that another kind of card is named as such.
+        let value: serde_json::Value =
+            serde_json::from_str(text).map_err(|e| bad(e.to_string()))?;
+        match value.get("format").and_then(|f| f.as_str()) {
+            Some(CARD_FORMAT) => {}
+            Some(other) => return Err(bad(format!("format `{other}`, not `{CARD_FORMAT}`"))),
+            None => {
+                return Err(bad(format!(
+                    "no `format` field (a graph card has `{CARD_FORMAT}`)"
+                )));
+            }
         }
-        Ok(card)
+        serde_json::from_value(value).map_err(|e| bad(e.to_string()))
     }
 
     /// Checks that `bytes` (the weights file at `path`) is the file this card describes.

@@ -257,5 +257,12 @@ fn a_card_for_other_weights_is_refused() {
     std::fs::write(dir.join("m.json"), card.to_string()).unwrap();
     let provider = GraphWarmStart::from_files("m", &model, None).unwrap();
     assert_eq!(provider.name(), "m");
+    // A CNN's card is named as another kind of card.
+    let cnn = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/pressure.json");
+    let e = GraphWarmStart::from_files("m", &model, Some(&cnn)).unwrap_err();
+    assert!(
+        matches!(&e, GraphError::Card { reason, .. } if reason.contains("deepcontact-model-card")),
+        "{e}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
