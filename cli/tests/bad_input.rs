@@ -95,6 +95,17 @@ fn cases(dir: &Path) -> Vec<Case> {
     let huge = format!("file:{}", huge_path.display());
     let missing = format!("file:{}", dir.join("missing.csv").display());
     let other_seed = scene("seed7.csv", &format!("{header}0,7,0,2,1,0.5\n"));
+    // The graph model: another file under its card, its file under a CNN's card.
+    let graph_under_its_card = format!(
+        "graph-file:path={},card={}",
+        models().join("peak.onnx").display(),
+        models().join("graph.json").display()
+    );
+    let graph_with_cnn_card = format!(
+        "graph-file:path={},card={}",
+        models().join("graph.safetensors").display(),
+        models().join("pressure.json").display()
+    );
 
     fn sim<'a>(extra: &[&'a str]) -> Vec<&'a str> {
         let mut v = vec!["simulate", "--steps", "2"];
@@ -121,6 +132,26 @@ fn cases(dir: &Path) -> Vec<Case> {
             "over-relaxation factor out of range",
             &sim(&["--warm-start", "sor:omega=2"]),
             "[1, 2)",
+        ),
+        case(
+            "graph model without a path",
+            &sim(&["--warm-start", "graph-file"]),
+            "needs path=",
+        ),
+        case(
+            "graph model file missing",
+            &sim(&["--warm-start", "graph-file:path=/nonexistent.safetensors"]),
+            "/nonexistent.json",
+        ),
+        case(
+            "another file under a graph card",
+            &sim(&["--warm-start", &graph_under_its_card]),
+            "is not the model of its card",
+        ),
+        case(
+            "a CNN card for a graph model",
+            &sim(&["--warm-start", &graph_with_cnn_card]),
+            "not `deepcontact-graph-card`",
         ),
         case(
             "Newton-only presolve parameter with another solver",
