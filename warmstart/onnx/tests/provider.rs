@@ -235,11 +235,26 @@ fn unknown_backend_and_registry_errors() {
     assert_eq!(p.name(), "tiny");
 }
 
-/// Checks every warm start on the way and counts the calls.
+/// Checks every warm start on the way (finite, normal ≥ 0), counts the calls, and keeps the
+/// starts and the carried impulses it was given.
 struct Checked {
     inner: CnnWarmStart,
     calls: usize,
     points: usize,
+    starts: Vec<Impulse>,
+    carried: Vec<Impulse>,
+}
+
+impl Checked {
+    fn new(inner: CnnWarmStart) -> Self {
+        Self {
+            inner,
+            calls: 0,
+            points: 0,
+            starts: Vec::new(),
+            carried: Vec::new(),
+        }
+    }
 }
 
 impl WarmStart for Checked {
@@ -259,6 +274,8 @@ impl WarmStart for Checked {
         }
         self.calls += 1;
         self.points += out.len();
+        self.starts.extend_from_slice(out);
+        self.carried.extend(ctx.carried_impulses());
         Ok(())
     }
 }
@@ -296,11 +313,7 @@ fn provider_output_on_a_pile_step_is_finite_and_admissible() {
         ProviderOptions { backend: backend() },
     )
     .unwrap();
-    let mut provider = Checked {
-        inner,
-        calls: 0,
-        points: 0,
-    };
+    let mut provider = Checked::new(inner);
     let report = world
         .step(&mut provider, &mut solver, &mut position)
         .unwrap();
@@ -422,11 +435,7 @@ fn residual_model_corrects_the_carried_impulses() {
 
     let (mut world, mut solver, mut position) = pile_after(150);
     let inner = CnnWarmStart::shipped(shipped, ProviderOptions { backend: backend() }).unwrap();
-    let mut provider = Recorded {
-        inner,
-        starts: Vec::new(),
-        carried: Vec::new(),
-    };
+    let mut provider = Checked::new(inner);
     let report = world
         .step(&mut provider, &mut solver, &mut position)
         .unwrap();
@@ -480,27 +489,4 @@ fn pile_after(
             .unwrap();
     }
     (world, solver, position)
-}
-
-/// A provider wrapper keeping the starts and the carried impulses it was given.
-struct Recorded {
-    inner: CnnWarmStart,
-    starts: Vec<Impulse>,
-    carried: Vec<Impulse>,
-}
-
-impl WarmStart for Recorded {
-    fn name(&self) -> &str {
-        self.inner.name()
-    }
-    fn warm_start(
-        &mut self,
-        ctx: &WarmStartContext<'_>,
-        out: &mut [Impulse],
-    ) -> Result<(), WarmStartError> {
-        self.inner.warm_start(ctx, out)?;
-        self.starts.extend_from_slice(out);
-        self.carried.extend(ctx.carried_impulses());
-        Ok(())
-    }
 }
