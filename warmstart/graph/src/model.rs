@@ -123,72 +123,12 @@ pub struct ContactGraphModel {
 impl ContactGraphModel {
     /// Loads a weights file written by `models/train/graph.py` (`path` labels errors).
     pub fn from_safetensors(bytes: &[u8], path: &Path) -> Result<Self, GraphError> {
-        let format = |reason: String| GraphError::Format {
+        let architecture = read_architecture(bytes, path)?;
+        let file = SafeTensors::deserialize(bytes).map_err(|e| GraphError::Format {
             path: path.to_path_buf(),
-            reason,
-        };
-        let (_, meta) = SafeTensors::read_metadata(bytes)
-            .map_err(|e| format(format!("not safetensors: {e}")))?;
-        let empty = HashMap::new();
-        let meta = meta.metadata().as_ref().unwrap_or(&empty);
-        if meta.get("format").map(String::as_str) != Some(MODEL_FORMAT) {
-            return Err(format(format!(
-                "metadata `format` is {:?}, not `{MODEL_FORMAT}`",
-                meta.get("format")
-            )));
-        }
-        let architecture: Architecture = meta
-            .get("architecture")
-            .ok_or_else(|| format("no `architecture` metadata".into()))
-            .and_then(|a| {
-                serde_json::from_str(a).map_err(|e| format(format!("architecture: {e}")))
-            })?;
-        let a = &architecture;
-        if a.model != "contact-graph" || a.features != FEATURES {
-            return Err(format(format!(
-                "architecture is `{}` on features {:?}; this build runs `contact-graph` on {:?}",
-                a.model, a.features, FEATURES
-            )));
-        }
-        if a.hidden == 0 || a.channels == 0 || a.hidden > 4096 || a.channels > 4096 || a.rounds > 64
-        {
-            return Err(format(format!(
-                "hidden {}, channels {}, rounds {}: out of range",
-                a.hidden, a.channels, a.rounds
-            )));
-        }
-        if !(a.impulse_scale.is_finite() && a.impulse_scale > 0.0) {
-            return Err(format(format!(
-                "impulse_scale {} is not positive",
-                a.impulse_scale
-            )));
-        }
-        let file =
-            SafeTensors::deserialize(bytes).map_err(|e| format(format!("not safetensors: {e}")))?;
-        let tensor = |name: &str, shape: &[usize]| -> Result<Vec<f32>, GraphError> {
-            let bad = |reason: String| GraphError::Tensor {
-                path: path.to_path_buf(),
-                name: name.to_string(),
-                reason,
-            };
-            let t = file.tensor(name).map_err(|_| bad("is missing".into()))?;
-            if t.dtype() != Dtype::F32 || t.shape() != shape {
-                return Err(bad(format!(
-                    "is {:?} {:?}, expected F32 {shape:?}",
-                    t.dtype(),
-                    t.shape()
-                )));
-            }
-            let v: Vec<f32> = t
-                .data()
-                .chunks_exact(4)
-                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-                .collect();
-            match v.iter().position(|x| !x.is_finite()) {
-                Some(i) => Err(bad(format!("holds {} at {i}", v[i]))),
-                None => Ok(v),
-            }
-        };
+            reason: format!("not safetensors: {e}"),
+        })?;
+        let tensor = |name: &str, shape: &[usize]| read_tensor(&file, path, name, shape);
         let linear = |name: &str, inputs: usize, outputs: usize| -> Result<Linear, GraphError> {
             let w = tensor(&format!("{name}.weight"), &[outputs, inputs])?;
             let mut transposed = vec![0.0; inputs * outputs];
@@ -203,7 +143,11 @@ impl ContactGraphModel {
                 bias: tensor(&format!("{name}.bias"), &[outputs])?,
             })
         };
-        let (h, k) = (a.hidden, a.channels);
+        let (h, k, rounds) = (
+            architecture.hidden,
+            architecture.channels,
+            architecture.rounds,
+        );
         let std = tensor("feature_std", &[FEATURE_COUNT])?;
         if let Some(i) = std.iter().position(|&s| s <= 0.0) {
             return Err(GraphError::Tensor {
@@ -216,10 +160,10 @@ impl ContactGraphModel {
             mean: tensor("feature_mean", &[FEATURE_COUNT])?,
             inverse_std: std.iter().map(|s| 1.0 / s).collect(),
             encoder: linear("encoder", FEATURE_COUNT, h)?,
-            message: (0..a.rounds)
+            message: (0..rounds)
                 .map(|r| linear(&format!("message.{r}"), h, 3 * k))
                 .collect::<Result<_, _>>()?,
-            update: (0..a.rounds)
+            update: (0..rounds)
                 .map(|r| linear(&format!("update.{r}"), h + 6 * k, h))
                 .collect::<Result<_, _>>()?,
             head: linear("head", h, 2)?,
@@ -346,6 +290,78 @@ impl ContactGraphModel {
             self.head.apply(state, &mut d);
             *o = [d[0] * scale, d[1] * scale];
         }
+    }
+}
+
+/// The checked `architecture` of a weights file's metadata.
+fn read_architecture(bytes: &[u8], path: &Path) -> Result<Architecture, GraphError> {
+    let format = |reason: String| GraphError::Format {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let (_, meta) =
+        SafeTensors::read_metadata(bytes).map_err(|e| format(format!("not safetensors: {e}")))?;
+    let empty = HashMap::new();
+    let meta = meta.metadata().as_ref().unwrap_or(&empty);
+    if meta.get("format").map(String::as_str) != Some(MODEL_FORMAT) {
+        return Err(format(format!(
+            "metadata `format` is {:?}, not `{MODEL_FORMAT}`",
+            meta.get("format")
+        )));
+    }
+    let a: Architecture = meta
+        .get("architecture")
+        .ok_or_else(|| format("no `architecture` metadata".into()))
+        .and_then(|a| serde_json::from_str(a).map_err(|e| format(format!("architecture: {e}"))))?;
+    if a.model != "contact-graph" || a.features != FEATURES {
+        return Err(format(format!(
+            "architecture is `{}` on features {:?}; this build runs `contact-graph` on {:?}",
+            a.model, a.features, FEATURES
+        )));
+    }
+    if a.hidden == 0 || a.channels == 0 || a.hidden > 4096 || a.channels > 4096 || a.rounds > 64 {
+        return Err(format(format!(
+            "hidden {}, channels {}, rounds {}: out of range",
+            a.hidden, a.channels, a.rounds
+        )));
+    }
+    if !(a.impulse_scale.is_finite() && a.impulse_scale > 0.0) {
+        return Err(format(format!(
+            "impulse_scale {} is not positive",
+            a.impulse_scale
+        )));
+    }
+    Ok(a)
+}
+
+/// Tensor `name` of `file` as `f32`s, checked: present, F32 of `shape`, finite.
+fn read_tensor(
+    file: &SafeTensors<'_>,
+    path: &Path,
+    name: &str,
+    shape: &[usize],
+) -> Result<Vec<f32>, GraphError> {
+    let bad = |reason: String| GraphError::Tensor {
+        path: path.to_path_buf(),
+        name: name.to_string(),
+        reason,
+    };
+    let t = file.tensor(name).map_err(|_| bad("is missing".into()))?;
+    if t.dtype() != Dtype::F32 || t.shape() != shape {
+        return Err(bad(format!(
+            "is {:?} {:?}, expected F32 {shape:?}",
+            t.dtype(),
+            t.shape()
+        )));
+    }
+    let v: Vec<f32> = t
+        .data()
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect();
+    match v.iter().position(|x| !x.is_finite()) {
+        Some(i) => Err(bad(format!("holds {} at {i}", v[i]))),
+        None => Ok(v),
     }
 }
 
