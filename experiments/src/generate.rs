@@ -280,6 +280,44 @@ struct Columns {
     contact_edges: Vec<i32>,
 }
 
+impl Columns {
+    /// One contact's columns: raw contact `r`, as the providers saw it (`point`), its warm
+    /// start the step before (`previous`) and its final impulse (`f`).
+    fn push_contact(
+        &mut self,
+        r: &deepcontact_core::narrow_phase::RawContact,
+        point: &PointCapture,
+        previous: Impulse,
+        f: Impulse,
+    ) {
+        let w = point.warm;
+        self.contact_persisted.push(u8::from(point.persisted));
+        self.contact_previous_impulse
+            .extend([previous.normal as f32, previous.tangent as f32]);
+        self.contact_separation.push(point.separation);
+        self.contact_relative_velocity.extend(point.velocity);
+        self.contact_island.push(point.island);
+        let row = &point.row;
+        self.contact_solver_bodies.extend(row.bodies);
+        self.contact_solver_normal.extend(row.normal);
+        self.contact_anchors.extend(row.anchors);
+        self.contact_row_mass.extend(row.mass);
+        self.contact_friction.push(row.friction);
+        self.contact_velocity_bias.push(row.velocity_bias);
+        self.contact_point.push(row.point);
+        self.contact_position
+            .extend([r.point.x as f32, r.point.y as f32]);
+        self.contact_bodies
+            .extend([r.id.body_a as i32, r.id.body_b as i32]);
+        self.contact_normal
+            .extend([r.normal.x as f32, r.normal.y as f32]);
+        self.contact_warm_start
+            .extend([w.normal as f32, w.tangent as f32]);
+        self.contact_impulse
+            .extend([f.normal as f32, f.tangent as f32]);
+    }
+}
+
 /// The value of `id` in a list sorted by id, or the default.
 fn lookup<T: Copy + Default>(sorted: &[(ContactId, T)], id: &ContactId) -> T {
     sorted
@@ -384,32 +422,9 @@ fn simulate_seed(
         pairs.clear();
         for r in raw {
             let (point, f) = (lookup(&rec.warm, &r.id), lookup(finals, &r.id));
-            let (w, previous) = (point.warm, lookup(&rec.previous, &r.id).warm);
-            c.contact_persisted.push(u8::from(point.persisted));
-            c.contact_previous_impulse
-                .extend([previous.normal as f32, previous.tangent as f32]);
-            c.contact_separation.push(point.separation);
-            c.contact_relative_velocity.extend(point.velocity);
-            c.contact_island.push(point.island);
-            let row = &point.row;
-            c.contact_solver_bodies.extend(row.bodies);
-            c.contact_solver_normal.extend(row.normal);
-            c.contact_anchors.extend(row.anchors);
-            c.contact_row_mass.extend(row.mass);
-            c.contact_friction.push(row.friction);
-            c.contact_velocity_bias.push(row.velocity_bias);
-            c.contact_point.push(row.point);
+            let previous = lookup(&rec.previous, &r.id).warm;
+            c.push_contact(r, &point, previous, f);
             pairs.push([r.id.body_a as i32, r.id.body_b as i32]);
-            c.contact_position
-                .extend([r.point.x as f32, r.point.y as f32]);
-            c.contact_bodies
-                .extend([r.id.body_a as i32, r.id.body_b as i32]);
-            c.contact_normal
-                .extend([r.normal.x as f32, r.normal.y as f32]);
-            c.contact_warm_start
-                .extend([w.normal as f32, w.tangent as f32]);
-            c.contact_impulse
-                .extend([f.normal as f32, f.tangent as f32]);
         }
         c.contact_offsets
             .push((c.contact_position.len() / 2) as i64);
@@ -587,10 +602,32 @@ fn write_seed(
         })
         .collect::<Result<Vec<_>, _>>()?;
     let meta = metadata(seed, config, layout, c);
-    write_atomic_with(path, |tmp| {
-        safetensors::serialize_to_file(views, Some(meta), tmp)
-            .map_err(|e| std::io::Error::other(e.to_string()))
-    })
+    let bytes = safetensors::serialize(views, Some(meta))
+        .map_err(|e| ExperimentError::Invalid(format!("seed {seed}: {e}")))?;
+    let bytes = canonical_header(bytes)?;
+    write_atomic_with(path, |tmp| std::fs::write(tmp, &bytes))
+}
+
+/// The file with its JSON header's keys sorted. safetensors writes the metadata from a
+/// `HashMap`, whose order changes from run to run; sorted, the same seed gives the same bytes.
+/// The header keeps its length (the same keys and values, padded with spaces as before).
+fn canonical_header(mut bytes: Vec<u8>) -> Result<Vec<u8>, ExperimentError> {
+    let bad = |why: String| ExperimentError::Invalid(format!("safetensors header: {why}"));
+    let n = bytes
+        .get(..8)
+        .map(|b| u64::from_le_bytes(b.try_into().unwrap_or([0; 8])) as usize)
+        .filter(|&n| 8 + n <= bytes.len())
+        .ok_or_else(|| bad("truncated".into()))?;
+    let header: serde_json::Value =
+        serde_json::from_slice(&bytes[8..8 + n]).map_err(|e| bad(e.to_string()))?;
+    // serde_json's `Value` keeps object keys sorted (no `preserve_order`).
+    let sorted = serde_json::to_vec(&header).map_err(|e| bad(e.to_string()))?;
+    if sorted.len() > n {
+        return Err(bad(format!("{} bytes sorted against {n}", sorted.len())));
+    }
+    bytes[8..8 + sorted.len()].copy_from_slice(&sorted);
+    bytes[8 + sorted.len()..8 + n].fill(b' ');
+    Ok(bytes)
 }
 
 /// Whether `path` is a complete file of this format for `seed` with these settings: the header
@@ -794,6 +831,29 @@ mod tests {
             }
         }
         std::fs::remove_dir_all(&out).ok();
+    }
+
+    /// The metadata came from a `HashMap`, so the same seed gave files whose headers listed
+    /// its keys in another order on every write (the tensors were the same).
+    #[test]
+    fn regression_generated_files_differed_between_runs_in_their_header_order() {
+        let dir = std::env::temp_dir().join(format!("dc-generate-twice-{}", std::process::id()));
+        let write = |sub: &str| {
+            let config = GenerateConfig {
+                seeds: vec![2],
+                out: dir.join(sub),
+                steps: 40,
+                threads: 1,
+                progress: false,
+                grids: false,
+                ..GenerateConfig::default()
+            };
+            run_generate(&config, &crate::full_registry()).unwrap();
+            std::fs::read(seed_file(&config.out, 2)).unwrap()
+        };
+        let (a, b) = (write("a"), write("b"));
+        assert!(a == b, "two writes of seed 2 differ");
+        std::fs::remove_dir_all(&dir).ok();
     }
 
     /// The recorded solver rows are the solver's: with the bodies' recorded velocities and
