@@ -856,6 +856,29 @@ mod tests {
         std::fs::remove_dir_all(&dir).ok();
     }
 
+    /// Tensor `name` of `file` (F32, I32 or I64) as rows of `width` numbers.
+    fn rows_of(file: &safetensors::SafeTensors<'_>, name: &str, width: usize) -> Vec<Vec<f64>> {
+        let t = file.tensor(name).unwrap();
+        let v: Vec<f64> = match t.dtype() {
+            Dtype::F32 => t
+                .data()
+                .chunks(4)
+                .map(|b| f32::from_le_bytes(b.try_into().unwrap()) as f64)
+                .collect(),
+            Dtype::I32 => t
+                .data()
+                .chunks(4)
+                .map(|b| i32::from_le_bytes(b.try_into().unwrap()) as f64)
+                .collect(),
+            _ => t
+                .data()
+                .chunks(8)
+                .map(|b| i64::from_le_bytes(b.try_into().unwrap()) as f64)
+                .collect(),
+        };
+        v.chunks(width).map(<[f64]>::to_vec).collect()
+    }
+
     /// The recorded solver rows are the solver's: with the bodies' recorded velocities and
     /// inverse masses, the step's final impulses satisfy the contact conditions far better
     /// than a cold start does (a wrong sign, anchor or mass would break this), the effective
@@ -876,27 +899,7 @@ mod tests {
         let bytes = std::fs::read(seed_file(&out, 4)).unwrap();
         let file = safetensors::SafeTensors::deserialize(&bytes).unwrap();
         assert!(file.tensor("inputs").is_err() && file.tensor("labels").is_err());
-        let raw = |name: &str, width: usize| -> Vec<Vec<f64>> {
-            let t = file.tensor(name).unwrap();
-            let v: Vec<f64> = match t.dtype() {
-                Dtype::F32 => t
-                    .data()
-                    .chunks(4)
-                    .map(|b| f32::from_le_bytes(b.try_into().unwrap()) as f64)
-                    .collect(),
-                Dtype::I32 => t
-                    .data()
-                    .chunks(4)
-                    .map(|b| i32::from_le_bytes(b.try_into().unwrap()) as f64)
-                    .collect(),
-                _ => t
-                    .data()
-                    .chunks(8)
-                    .map(|b| i64::from_le_bytes(b.try_into().unwrap()) as f64)
-                    .collect(),
-            };
-            v.chunks(width).map(<[f64]>::to_vec).collect()
-        };
+        let raw = |name: &str, width: usize| rows_of(&file, name, width);
         let (offsets, inverse) = (raw("contact_offsets", 1), raw("body_inverse_mass", 2));
         let nb = inverse.len();
         let (vel, ang) = (raw("body_velocity", 2), raw("body_angular_velocity", 1));
