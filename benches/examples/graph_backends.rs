@@ -268,6 +268,49 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
+/// µs per step of each round, the two backends in alternating order: Rust, ONNX, and the
+/// ONNX inputs' building alone.
+type Times = (Vec<f64>, Vec<f64>, Vec<f64>);
+
+/// Times `count` rounds (see [`Times`]).
+fn rounds(
+    count: usize,
+    (rust, onnx): (&mut RustBackend<'_>, &mut OnnxBackend),
+    steps: &[Vec<Island>],
+    (out_rust, out_onnx): (&mut Outputs, &mut Outputs),
+) -> Result<Times, String> {
+    let (mut us_rust, mut us_onnx, mut us_fill) = (Vec::new(), Vec::new(), Vec::new());
+    for round in 0..count {
+        let (r, x) = if round % 2 == 0 {
+            let r = time_rust(rust, steps, out_rust);
+            (r, time_onnx(onnx, steps, out_onnx)?)
+        } else {
+            let x = time_onnx(onnx, steps, out_onnx)?;
+            (time_rust(rust, steps, out_rust), x)
+        };
+        let f = time_fill(onnx, steps);
+        eprintln!(
+            "round {round}: Rust {r:.1} µs/step, ONNX (tract) {x:.1} µs/step (inputs {f:.1})"
+        );
+        us_rust.push(r);
+        us_onnx.push(x);
+        us_fill.push(f);
+    }
+    Ok((us_rust, us_onnx, us_fill))
+}
+
+/// The largest difference between the two backends' corrections, and the largest correction.
+fn largest_difference(a: &Outputs, b: &Outputs) -> (f32, f32) {
+    let (mut diff, mut size) = (0.0f32, 0.0f32);
+    for (a, b) in a.iter().flatten().zip(b.iter().flatten()) {
+        for (x, y) in a.iter().flatten().zip(b.iter().flatten()) {
+            diff = diff.max((x - y).abs());
+            size = size.max(x.abs());
+        }
+    }
+    (diff, size)
+}
+
 fn main() -> Result<(), String> {
     let Some(o) = parse()? else {
         return Ok(());
@@ -317,38 +360,52 @@ fn main() -> Result<(), String> {
             .collect()
     };
     let (mut out_rust, mut out_onnx) = (buffers(), buffers());
-    let n = steps.len() as f64;
     // Warm-up (not timed): buffers grown, tract's plans built.
     time_rust(&mut rust, &steps, &mut out_rust);
     time_onnx(&mut onnx, &steps, &mut out_onnx)?;
-    let (mut us_rust, mut us_onnx, mut us_fill) = (Vec::new(), Vec::new(), Vec::new());
-    for round in 0..o.rounds {
-        let (r, x) = if round % 2 == 0 {
-            let r = time_rust(&mut rust, &steps, &mut out_rust);
-            (r, time_onnx(&mut onnx, &steps, &mut out_onnx)?)
-        } else {
-            let x = time_onnx(&mut onnx, &steps, &mut out_onnx)?;
-            (time_rust(&mut rust, &steps, &mut out_rust), x)
-        };
-        let f = time_fill(&mut onnx, &steps);
-        eprintln!(
-            "round {round}: Rust {r:.1} µs/step, ONNX (tract) {x:.1} µs/step (inputs {f:.1})"
-        );
-        us_rust.push(r);
-        us_onnx.push(x);
-        us_fill.push(f);
-    }
+    let (us_rust, us_onnx, us_fill) = rounds(
+        o.rounds,
+        (&mut rust, &mut onnx),
+        &steps,
+        (&mut out_rust, &mut out_onnx),
+    )?;
 
-    let (mut diff, mut size) = (0.0f32, 0.0f32);
-    for (a, b) in out_rust.iter().flatten().zip(out_onnx.iter().flatten()) {
-        for (x, y) in a.iter().flatten().zip(b.iter().flatten()) {
-            diff = diff.max((x - y).abs());
-            size = size.max(x.abs());
-        }
-    }
+    let (diff, size) = largest_difference(&out_rust, &out_onnx);
     if !diff.is_finite() {
         return Err("the backends' outputs are not finite".into());
     }
+    let times = (us_rust, us_onnx, us_fill);
+    let counts = Counts {
+        steps: steps.len(),
+        islands,
+        points,
+        bodies,
+        largest,
+    };
+    print_report(&o, model, &counts, &times, (diff, size));
+    Ok(())
+}
+
+/// What was recorded: steps, islands, points and bodies in all, the largest island's points
+/// and bodies.
+struct Counts {
+    steps: usize,
+    islands: usize,
+    points: usize,
+    bodies: usize,
+    largest: (usize, usize),
+}
+
+/// Prints the scene, the table and the backends' agreement.
+fn print_report(
+    o: &Options,
+    model: &ContactGraphModel,
+    c: &Counts,
+    (us_rust, us_onnx, us_fill): &Times,
+    (diff, size): (f32, f32),
+) {
+    let (n, islands, points, bodies, largest) =
+        (c.steps as f64, c.islands, c.points, c.bodies, c.largest);
     let (r, x, f) = (
         median(us_rust.clone()),
         median(us_onnx.clone()),
@@ -371,29 +428,28 @@ fn main() -> Result<(), String> {
         model.architecture().rounds,
         o.rounds,
     );
+    let per_point = n / points as f64;
     println!("| backend | µs/step (median) | µs/step (min) | µs/point |");
     println!("|---|---:|---:|---:|");
-    let per_point = n / points as f64;
-    println!(
-        "| Rust forward pass | {r:.1} | {:.1} | {:.3} |",
-        min(&us_rust),
-        r * per_point
-    );
-    println!(
-        "| ONNX, ort + tract (Level3, inputs built) | {x:.1} | {:.1} | {:.3} |",
-        min(&us_onnx),
-        x * per_point
-    );
-    println!(
-        "| (of which: ONNX inputs built, features + incidence matrices) | {f:.1} | {:.1} | {:.3} |",
-        min(&us_fill),
-        f * per_point
-    );
+    for (what, times, median) in [
+        ("Rust forward pass", &us_rust, r),
+        ("ONNX, ort + tract (Level3, inputs built)", &us_onnx, x),
+        (
+            "(of which: ONNX inputs built, features + incidence matrices)",
+            &us_fill,
+            f,
+        ),
+    ] {
+        println!(
+            "| {what} | {median:.1} | {:.1} | {:.3} |",
+            min(times),
+            median * per_point
+        );
+    }
     println!(
         "\nONNX / Rust: {:.1}×. Largest |Rust − ONNX| over all corrections: {diff:.3e} N·s \
          (largest |correction| {size:.3e} N·s, relative {:.1e}).",
         x / r,
         diff / size.max(f32::MIN_POSITIVE)
     );
-    Ok(())
 }
