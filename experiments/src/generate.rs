@@ -20,7 +20,6 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use deepcontact_core::math::cross_sv;
 use deepcontact_core::{
     CarriedWarmStart, ContactId, Impulse, PositionSolver, Registry, WarmStart, WarmStartContext,
     WarmStartError, World, WorldSettings,
@@ -214,9 +213,7 @@ impl WarmStart for StepCapture {
                 &problem.bodies[p.body_a as usize],
                 &problem.bodies[p.body_b as usize],
             );
-            let va = a.linear_velocity + cross_sv(a.angular_velocity, &p.r_a);
-            let vb = b.linear_velocity + cross_sv(b.angular_velocity, &p.r_b);
-            let dv = vb - va;
+            let dv = problem.relative_velocity(i);
             self.warm.push((
                 p.id,
                 PointCapture {

@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use deepcontact_core::math::{Real, cross, cross_sv};
+use deepcontact_core::math::{Real, cross};
 use deepcontact_core::{Impulse, WarmStart, WarmStartContext, WarmStartError};
 
 use crate::GraphError;
@@ -111,8 +111,7 @@ fn point_input(ctx: &WarmStartContext<'_>, i: usize) -> PointInput {
     );
     let carried = ctx.carried.get(i).copied().flatten();
     let c = carried.unwrap_or(Impulse::ZERO);
-    let dv = (b.linear_velocity + cross_sv(b.angular_velocity, &p.r_b))
-        - (a.linear_velocity + cross_sv(a.angular_velocity, &p.r_a));
+    let dv = problem.relative_velocity(i);
     let f = [
         c.normal,
         c.tangent,
