@@ -418,6 +418,18 @@ def pgs_sweeps(g: dict, start: torch.Tensor, sweeps: int) -> torch.Tensor:
     return torch.stack([ln, lt], dim=1)
 
 
+def sweep_check(args) -> None:
+    """Prints the mean squared distance (N·s²) from the recorded warm start to the final impulses
+    after k sweeps of `pgs_sweeps`: it must fall towards 0 if the sweeps are the solver's."""
+    steps = load_steps(args.data, seeds(args.validation_seeds), 5, 150)
+    g = batch(steps)
+    with torch.no_grad():
+        for k in (0, 10, 100, 400):
+            d = ((pgs_sweeps(g, g["carried"], k) - g["label"]) ** 2).mean().item()
+            print(f"{k} sweeps: {d:.4g}")
+    print(f"({len(steps)} steps; mean squared final impulse {(g['label'] ** 2).mean().item():.4g})")
+
+
 def loss_of(model, g, stats, args) -> torch.Tensor:
     mean, std, scale = stats
     start = model(g, mean, std, scale)
@@ -454,7 +466,13 @@ def main() -> None:
     p.add_argument("--check-only", action="store_true", help="only (re)write the card's check case")
     p.add_argument("--onnx", nargs="?", const=True, default=None, metavar="PATH",
                    help="also write an ONNX export (default <out>.onnx); with --check-only, only that")
+    p.add_argument("--sweep-check", action="store_true",
+                   help="only check the PyTorch sweeps against the solver: distance from builtin's "
+                   "start to the final impulses after 0, 10, 100, 400 sweeps (validation steps >= 150)")
     args = p.parse_args()
+    if args.sweep_check:
+        sweep_check(args)
+        return
     if args.check_only:
         model, mean, std, scale = load_model(args.out.with_suffix(".safetensors"))
         if args.onnx:
