@@ -52,6 +52,11 @@ pub struct CompareArgs {
     /// Hide the progress bar.
     #[arg(long)]
     pub quiet: bool,
+    /// Solve every provider's start on the problems of this warm start's world (one of
+    /// `--warm-starts`, e.g. `builtin`): after each step every world becomes a copy of it, so
+    /// all figures compare starts on the same contacts instead of diverging trajectories.
+    #[arg(long, value_name = "WARM_START")]
+    pub same_problems: Option<String>,
 }
 
 impl CompareArgs {
@@ -79,6 +84,7 @@ impl CompareArgs {
             world: preset.world(self.solver.world_settings()),
             threads: self.threads.unwrap_or(0),
             progress: !self.quiet,
+            same_problems: self.same_problems.clone(),
         })
     }
 }

@@ -119,6 +119,7 @@ pub fn run(py: Python<'_>, args: CompareArgs) -> Result<Py<PyList>, PythonBindin
         )?,
         threads: args.threads,
         progress: false,
+        same_problems: None,
     };
 
     let stop = AtomicBool::new(false);

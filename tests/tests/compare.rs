@@ -389,3 +389,52 @@ fn bad_input_is_a_typed_error() {
         );
     }
 }
+
+/// `same_problems`: every provider solves the driver's problem of each step (the same
+/// contacts), the driver's own numbers are those of the ordinary comparison, and the other
+/// providers' differ from theirs (they no longer follow their own trajectories).
+#[test]
+fn same_problems_solves_every_start_on_the_drivers_world() {
+    let base = Config {
+        warm_starts: split_spec_list("none,builtin,sor").unwrap(),
+        seeds: vec![12345],
+        steps: 60,
+        threads: 1,
+        progress: false,
+        ..Config::default()
+    };
+    let own = compare::run_experiment(&base).unwrap();
+    let same = compare::run_experiment(&Config {
+        same_problems: Some("builtin".into()),
+        ..base.clone()
+    })
+    .unwrap();
+    let records = |r: &Results, w: usize| -> Vec<StepRecord> {
+        r.group(0, w)[0].steps.iter().map(deterministic).collect()
+    };
+    assert_eq!(
+        records(&own, 1),
+        records(&same, 1),
+        "the driver's run changed"
+    );
+    let contacts = |r: &Results, w: usize| -> Vec<usize> {
+        r.group(0, w)[0].steps.iter().map(|s| s.contacts).collect()
+    };
+    for w in [0, 2] {
+        assert_eq!(contacts(&same, w), contacts(&same, 1), "warm start {w}");
+        assert_ne!(records(&own, w), records(&same, w), "warm start {w}");
+    }
+    assert!(contacts(&same, 1).iter().any(|&c| c > 0));
+    let md = compare::summary_md(&same, &compare::summarize(&same));
+    assert!(md.contains("Same problems"), "{md}");
+
+    let err = compare::run_experiment(&Config {
+        same_problems: Some("graph".into()),
+        ..base
+    })
+    .unwrap_err();
+    assert!(
+        matches!(&err, ExperimentError::Invalid(m) if m.contains("`graph`")),
+        "{err}"
+    );
+}

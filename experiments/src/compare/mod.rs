@@ -73,6 +73,14 @@ pub struct Config {
     /// Show a progress bar on stderr (default true; hidden anyway when stderr is not a terminal).
     #[serde(skip)]
     pub progress: bool,
+    /// Same problems for every provider (default `None`: each provider steps its own world).
+    /// `Some(label)`: the world of the warm start labelled `label` (one of `warm_starts`)
+    /// sets every step's problem. Each step, every other provider's world is first made a
+    /// copy of that world, so all providers start, solve and are measured on the same
+    /// contacts, the same carried impulses (the driver's last solution) and the same
+    /// positions: the figures compare starts, not the trajectories they lead to. Providers
+    /// that remember earlier steps remember the driver's.
+    pub same_problems: Option<String>,
 }
 
 fn specs_as_strings<S: serde::Serializer>(specs: &[Spec], s: S) -> Result<S::Ok, S::Error> {
@@ -94,6 +102,7 @@ impl Default for Config {
             world: WorldSettings::default(),
             threads: 0,
             progress: true,
+            same_problems: None,
         }
     }
 }
@@ -110,6 +119,13 @@ impl Config {
     /// Labels of the warm starts (their specs as text), in order.
     pub fn warm_start_labels(&self) -> Vec<String> {
         self.warm_starts.iter().map(Spec::to_string).collect()
+    }
+
+    /// Index of the warm start whose world sets the problems ([`Config::same_problems`]), if
+    /// any and listed.
+    pub fn driver(&self) -> Option<usize> {
+        let label = self.same_problems.as_ref()?;
+        self.warm_start_labels().iter().position(|l| l == label)
     }
 
     /// Labels of the solvers, in order.
@@ -140,6 +156,14 @@ impl Config {
                 if labels[..i].contains(l) {
                     return Err(ExperimentError::Invalid(format!("`{l}` is listed twice")));
                 }
+            }
+        }
+        if let Some(driver) = &self.same_problems {
+            if self.driver().is_none() {
+                return Err(ExperimentError::Invalid(format!(
+                    "--same-problems `{driver}` is not one of the warm starts ({})",
+                    self.warm_start_labels().join(", ")
+                )));
             }
         }
         let mut seeds = self.seeds.clone();

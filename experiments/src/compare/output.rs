@@ -135,6 +135,13 @@ pub fn summary_md(results: &Results, rows: &[Summary]) -> String {
         results.threads,
         results.wall_seconds,
     );
+    if let Some(driver) = &c.same_problems {
+        let _ = writeln!(
+            s,
+            "Same problems: every step, each provider starts and solves on a copy of `{driver}`'s world \
+             (its contacts, carried impulses and positions), so the rows compare starts on identical problems.\n"
+        );
+    }
     let head = [
         "warm_start",
         "mean_iterations",

@@ -1,7 +1,8 @@
 //! Runs every (solver, warm start, seed) world, results in (solver, warm start, seed) order.
 //!
 //! One job per (solver, seed), jobs in parallel: a job builds one world per warm start and
-//! steps them in lockstep (step t of every provider's world, then step t + 1). A machine that
+//! steps them in lockstep (step t of every provider's world, then step t + 1). With
+//! [`Config::same_problems`] every world is reset to the driver's after each step. A machine that
 //! speeds up or slows down during a run (turbo, other load) then changes every provider's step
 //! times alike, so the times of one run compare provider against provider; run one provider
 //! after another and a slow spell lands on whichever ran then.
@@ -134,6 +135,7 @@ fn run_lockstep(
             })
         })
         .collect::<Result<Vec<_>, _>>()?;
+    let driver = config.driver();
     for _ in 0..config.steps {
         for lane in &mut lanes {
             if stop() {
@@ -151,6 +153,13 @@ fn run_lockstep(
                 Vec::new()
             });
             bar.inc(1);
+        }
+        if let Some(d) = driver {
+            let (before, rest) = lanes.split_at_mut(d);
+            let (lane, after) = rest.split_first_mut().expect("driver index is in range");
+            for other in before.iter_mut().chain(after) {
+                other.world.clone_from(&lane.world);
+            }
         }
     }
     Ok(lanes

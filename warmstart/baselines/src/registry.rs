@@ -173,15 +173,20 @@ fn register_contenders(registry: &mut Registry) {
     registry.register_provider(
         "sor",
         "carried impulses refined by over-relaxed Gauss-Seidel sweeps (PGS on effective masses scaled by omega); \
-         omega=1.7, sweeps=300, tolerance=1e-4 (tuned on seeds 100–109)",
-        |p, _| {
+         omega=1.7, sweeps=300, tolerance=1e-4 (tuned on seeds 100–109), start=builtin (a registered provider's name: \
+         the start the sweeps refine)",
+        |p, r| {
             let d = RelaxedConfig::default();
             let config = RelaxedConfig {
                 omega: p.f64("omega", d.omega)?,
                 sweeps: u32_param(p, "sweeps", d.sweeps)?,
                 tolerance: p.f64("tolerance", d.tolerance)?,
             };
-            Ok(Box::new(RelaxedWarmStart::new(config)?))
+            let provider = RelaxedWarmStart::new(config)?;
+            Ok(Box::new(match p.string("start") {
+                None | Some("builtin") => provider,
+                Some(name) => provider.with_start(r.build_provider(name)?),
+            }))
         },
     );
     registry.register_provider(

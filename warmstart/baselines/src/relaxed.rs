@@ -16,6 +16,9 @@
 //! 1e74 N·s (`sor_keeps_a_box_pyramid_standing`). As a guard, sweeps whose last impulse
 //! change is larger than their first (diverging) are dropped: the carried impulses are
 //! returned instead and the drop is counted (`diagnostics`: `dropped`).
+//!
+//! The sweeps can refine another provider's start instead of the carried impulses
+//! ([`RelaxedWarmStart::with_start`], `sor:start=NAME`).
 
 use deepcontact_core::{
     CarriedWarmStart, ContactProblem, Impulse, Real, SolveReport, SpecError, WarmStart,
@@ -58,9 +61,12 @@ impl Default for RelaxedConfig {
 /// let provider = RelaxedWarmStart::new(RelaxedConfig::default()).unwrap();
 /// assert_eq!(provider.name(), "sor");
 /// ```
-#[derive(Debug)]
 pub struct RelaxedWarmStart {
     config: RelaxedConfig,
+    /// The start the sweeps refine; `None`: the carried impulses (zeros for new points).
+    start: Option<Box<dyn WarmStart>>,
+    /// The start's impulses, restored when the sweeps diverge.
+    first: Vec<Impulse>,
     inner: InnerSolve,
     solver: PgsSolver,
     /// The island's problem with its effective masses scaled by ω.
@@ -100,6 +106,8 @@ impl RelaxedWarmStart {
         )?;
         Ok(Self {
             config,
+            start: None,
+            first: Vec::new(),
             inner,
             solver: PgsSolver::new(),
             relaxed: ContactProblem::new(),
@@ -110,6 +118,13 @@ impl RelaxedWarmStart {
             current: None,
             dropped: 0,
         })
+    }
+
+    /// The same provider refining `start`'s impulses instead of the carried ones (any
+    /// provider, e.g. a learned one: `sor:start=graph`). A failing start fails the call.
+    pub fn with_start(mut self, start: Box<dyn WarmStart>) -> Self {
+        self.start = Some(start);
+        self
     }
 
     /// Counts `sweeps` run on an island of `step`.
@@ -139,6 +154,16 @@ impl RelaxedWarmStart {
     }
 }
 
+impl std::fmt::Debug for RelaxedWarmStart {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RelaxedWarmStart")
+            .field("config", &self.config)
+            .field("start", &self.start.as_ref().map(|s| s.name()))
+            .field("dropped", &self.dropped)
+            .finish_non_exhaustive()
+    }
+}
+
 impl WarmStart for RelaxedWarmStart {
     fn name(&self) -> &str {
         "sor"
@@ -149,10 +174,15 @@ impl WarmStart for RelaxedWarmStart {
         ctx: &WarmStartContext<'_>,
         out: &mut [Impulse],
     ) -> Result<(), WarmStartError> {
-        CarriedWarmStart.warm_start(ctx, out)?;
+        match &mut self.start {
+            Some(start) => start.warm_start(ctx, out)?,
+            None => CarriedWarmStart.warm_start(ctx, out)?,
+        }
         if out.is_empty() {
             return Ok(());
         }
+        self.first.clear();
+        self.first.extend_from_slice(out);
         let problem = ctx.problem;
         let omega = self.config.omega;
         let r = &mut self.relaxed;
@@ -185,7 +215,7 @@ impl WarmStart for RelaxedWarmStart {
         self.count(ctx.step, sweeps);
         if dropped {
             self.dropped += 1;
-            CarriedWarmStart.warm_start(ctx, out)?;
+            out.copy_from_slice(&self.first);
         }
         Ok(())
     }
@@ -194,6 +224,9 @@ impl WarmStart for RelaxedWarmStart {
         (self.sweeps, self.islands, self.step_max_sum, self.steps) = (0, 0, 0, 0);
         self.dropped = 0;
         self.current = None;
+        if let Some(start) = &mut self.start {
+            start.reset();
+        }
     }
 
     /// `mean_sweeps` per island, `mean_sweeps_slowest_island` (the mean over steps of the

@@ -464,3 +464,37 @@ fn regression_sor_blew_up_a_box_pyramid() {
     // Still a pyramid resting on its 55 box faces and the ground (not scattered bodies).
     assert!(contacts > 150, "{contacts} contacts left");
 }
+
+/// `sor` refines any provider's start (`sor:start=…`): with ω = 1 from zeros it is plain PGS
+/// from zeros, whatever was carried; from `shock`'s exact loads of a column with nothing
+/// carried, the sweeps stop after their first and hand those loads on.
+#[test]
+fn sor_refines_the_start_of_another_provider() {
+    let (problem, _, carried) = short_of_load(12);
+    let plain = RelaxedConfig {
+        omega: 1.0,
+        sweeps: 7,
+        tolerance: 0.0,
+    };
+    let mut from_zeros = RelaxedWarmStart::new(plain)
+        .unwrap()
+        .with_start(Box::new(ZeroWarmStart));
+    assert_eq!(
+        start_of(&mut from_zeros, &problem, &carried, 1),
+        pgs_sweeps(&problem, &[Impulse::ZERO; 12], 7)
+    );
+    assert!(format!("{from_zeros:?}").contains("none"));
+
+    let column = column(6);
+    let mut from_shock = RelaxedWarmStart::new(RelaxedConfig::default())
+        .unwrap()
+        .with_start(Box::new(ShockWarmStart::new(0.5).unwrap()));
+    let start = start_of(&mut from_shock, &column, &[None; 6], 0);
+    assert_eq!(from_shock.last_report().iterations, 1);
+    for (got, want) in start.iter().zip(exact(6)) {
+        assert!(
+            (got.normal - want.normal).abs() < 1e-9,
+            "{got:?} vs {want:?}"
+        );
+    }
+}

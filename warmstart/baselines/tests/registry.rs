@@ -91,6 +91,10 @@ fn unknown_names_and_parameters_are_typed_errors() {
         Err(SpecError::UnknownSolver { .. })
     ));
     assert!(matches!(
+        r.build_provider("sor:start=nope"),
+        Err(SpecError::UnknownProvider { .. })
+    ));
+    assert!(matches!(
         r.build_provider("random:"),
         Err(SpecError::MalformedSpec { .. })
     ));
