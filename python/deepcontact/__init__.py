@@ -56,6 +56,7 @@ def compare(
     threads: int = 0,
     out: Optional[Union[str, "os.PathLike[str]"]] = None,
     figures: bool = False,
+    same_problems: Optional[str] = None,
     as_frame: Optional[bool] = None,
 ) -> Any:
     """Run the warm-start comparison of ``deepcontact compare`` and return its summary.
@@ -72,6 +73,10 @@ def compare(
     ``KeyboardInterrupt`` within a step of every running world. With ``out``, the CLI's files
     (``steps.csv``, ``curves.csv``, ``summary.{csv,md,json}``, and the figures with
     ``figures=True``) are written there, each file whole, after the comparison finished.
+
+    With ``same_problems`` (the label of one of ``warm_starts``, e.g. ``"builtin"``) every
+    provider starts and solves on a copy of that provider's world at every step, so the rows
+    compare starts on identical problems rather than on the trajectories they lead to.
 
     Returns one row per solver and warm start with the columns of the CLI's
     ``summary.json``: a pandas ``DataFrame`` when pandas is installed (``as_frame=None``) or
@@ -97,6 +102,7 @@ def compare(
         int(threads),
         None if out is None else os.fspath(out),
         bool(figures),
+        same_problems,
     )
     if as_frame is False:
         return rows

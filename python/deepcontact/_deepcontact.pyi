@@ -189,5 +189,6 @@ def compare_summary(
     threads: int,
     out: Optional[Union[str, PathLike[str]]],
     figures: bool,
+    same_problems: Optional[str] = None,
 ) -> List[dict[str, Any]]: ...
 def registry() -> Tuple[List[Tuple[str, str]], List[Tuple[str, str]]]: ...

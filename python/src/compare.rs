@@ -47,6 +47,9 @@ pub struct CompareArgs {
     pub out: Option<std::path::PathBuf>,
     /// Whether to draw the figures into `out`.
     pub figures: bool,
+    /// The warm start whose world sets every step's problem
+    /// ([`Config::same_problems`]), if any.
+    pub same_problems: Option<String>,
 }
 
 /// Runs the comparison (without the GIL, Ctrl-C checked every few milliseconds) and returns
@@ -119,7 +122,7 @@ pub fn run(py: Python<'_>, args: CompareArgs) -> Result<Py<PyList>, PythonBindin
         )?,
         threads: args.threads,
         progress: false,
-        same_problems: None,
+        same_problems: args.same_problems,
     };
 
     let stop = AtomicBool::new(false);

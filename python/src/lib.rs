@@ -29,7 +29,7 @@ pub use error::PythonBindingError;
 /// Runs the comparison of the CLI's `compare` and returns its summary rows (see
 /// `deepcontact.compare`, which wraps it).
 #[pyfunction]
-#[pyo3(signature = (warm_starts, seeds, steps, solvers, bodies, scene, tolerance, max_iterations, norm, guard, threads, out, figures))]
+#[pyo3(signature = (warm_starts, seeds, steps, solvers, bodies, scene, tolerance, max_iterations, norm, guard, threads, out, figures, same_problems=None))]
 #[allow(clippy::too_many_arguments)]
 fn compare_summary(
     py: Python<'_>,
@@ -46,6 +46,7 @@ fn compare_summary(
     threads: usize,
     out: Option<std::path::PathBuf>,
     figures: bool,
+    same_problems: Option<String>,
 ) -> Result<Py<pyo3::types::PyList>, PythonBindingError> {
     compare::run(
         py,
@@ -63,6 +64,7 @@ fn compare_summary(
             threads,
             out,
             figures,
+            same_problems,
         },
     )
 }

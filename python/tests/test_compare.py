@@ -100,6 +100,20 @@ def test_python_provider_errors_in_compare():
         deepcontact.compare([broken], seeds=SEEDS[:1], steps=STEPS, guard="error")
 
 
+def test_same_problems_solves_every_start_on_the_drivers_world(rows):
+    same = deepcontact.compare(
+        ["none", "builtin", carried], seeds=SEEDS, steps=STEPS, same_problems="builtin", as_frame=False
+    )
+    # The driver's numbers are the ordinary comparison's; a Python provider copying the
+    # carried impulses on the driver's world is the driver, step for step.
+    assert numbers(same[1]) == numbers(rows[1])
+    assert numbers(same[2]) == numbers(rows[1])
+    assert same[0]["mean_contacts"] == same[1]["mean_contacts"]
+    assert numbers(same[0]) != numbers(rows[0])
+    with pytest.raises(ValueError, match="not one of the warm starts"):
+        deepcontact.compare(["none"], seeds=SEEDS[:1], steps=5, same_problems="builtin")
+
+
 def test_names_and_bad_arguments():
     def builtin(island):
         return island.carried
