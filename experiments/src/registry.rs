@@ -20,6 +20,7 @@ pub fn full_registry() -> Registry {
     deepcontact_warmstart::register(&mut registry);
     deepcontact_grid::register(&mut registry);
     deepcontact_graph::register(&mut registry);
+    deepcontact_relax::register(&mut registry);
     #[cfg(feature = "onnx")]
     deepcontact_onnx::register(&mut registry);
     registry

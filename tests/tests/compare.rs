@@ -106,7 +106,8 @@ fn compare_writes_every_file_and_ignores_the_thread_count() {
             "best",
             "presolve",
             "sor",
-            "graph"
+            "graph",
+            "learned-sor"
         ]
     );
     assert_same_numbers(&one, &two);
@@ -135,7 +136,7 @@ fn compare_writes_every_file_and_ignores_the_thread_count() {
     let dir = scratch_dir("compare");
     let outputs = compare::write_outputs(&one, &dir, true).unwrap();
     // 5 tables, 5 figures and one per provider group (FIGURE_GROUPS), each as PNG and SVG.
-    assert_eq!(outputs.files.len(), 5 + 2 * (5 + 7));
+    assert_eq!(outputs.files.len(), 5 + 2 * (5 + 8));
     for f in &outputs.files {
         assert!(
             f.is_file() && std::fs::metadata(f).unwrap().len() > 0,

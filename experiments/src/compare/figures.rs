@@ -26,7 +26,7 @@ fn per_step(
 /// The groups of providers with a figure of their own, `(file stem, members)`: the thesis's
 /// (Figures 20–28), then the classical contenders of docs/RESEARCH.md. Each group present gets
 /// its own iterations figure, with `none` and `builtin` as references.
-pub const FIGURE_GROUPS: [(&str, &[&str]); 7] = [
+pub const FIGURE_GROUPS: [(&str, &[&str]); 8] = [
     ("iterations_none_builtin", &["none", "builtin"]),
     ("iterations_random_bad_copy", &["random", "bad", "copy"]),
     ("iterations_copy2_copy0", &["copy2", "copy0"]),
@@ -45,6 +45,7 @@ pub const FIGURE_GROUPS: [(&str, &[&str]); 7] = [
         ],
     ),
     ("iterations_graph", &["graph"]),
+    ("iterations_learned_sor", &["sor", "learned-sor"]),
 ];
 
 const STEP_LABEL: &str = "step (dt = 0.01 s)";

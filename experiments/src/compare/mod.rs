@@ -41,7 +41,7 @@ pub use stats::{Curve, Summary, curves, median, summarize};
 
 /// The thesis's providers and the classical contenders of docs/RESEARCH.md, the default of
 /// `--warm-starts`.
-pub const DEFAULT_WARM_STARTS: &str = "none,builtin,random,bad,copy,copy2,copy0,grid,pressure,peak,extrapolate,shock,tail,krylov,best,presolve,sor,graph";
+pub const DEFAULT_WARM_STARTS: &str = "none,builtin,random,bad,copy,copy2,copy0,grid,pressure,peak,extrapolate,shock,tail,krylov,best,presolve,sor,graph,learned-sor";
 /// The thesis's comparison seeds, the default of `--seeds` (end exclusive: 10 seeds).
 pub const DEFAULT_SEEDS: &str = "12345..12355";
 /// Iterations shown in the residual figure (the thesis's window).

@@ -48,7 +48,7 @@ pub use oracle::{OracleConfig, OracleOrder, OracleWarmStart};
 pub use presolve::{PresolveConfig, PresolveWarmStart};
 pub use random::{RandomConfig, RandomWarmStart};
 pub use registry::register;
-pub use relaxed::{RelaxedConfig, RelaxedWarmStart};
+pub use relaxed::{Relaxation, RelaxedConfig, RelaxedWarmStart};
 pub use rounded::Rounded;
 pub use shock::ShockWarmStart;
 pub use tail::{TailConfig, TailWarmStart};

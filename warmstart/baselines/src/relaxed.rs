@@ -18,7 +18,9 @@
 //! returned instead and the drop is counted (`diagnostics`: `dropped`).
 //!
 //! The sweeps can refine another provider's start instead of the carried impulses
-//! ([`RelaxedWarmStart::with_start`], `sor:start=NAME`).
+//! ([`RelaxedWarmStart::with_start`], `sor:start=NAME`), and each point can get its own
+//! factor ω_i from a [`Relaxation`] policy ([`RelaxedWarmStart::with_relaxation`]; a learned
+//! one is deepcontact-relax's `learned-sor`).
 
 use deepcontact_core::{
     CarriedWarmStart, ContactProblem, Impulse, Real, SolveReport, SpecError, WarmStart,
@@ -51,6 +53,40 @@ impl Default for RelaxedConfig {
     }
 }
 
+/// Per-point relaxation factors for [`RelaxedWarmStart`]: a policy that looks at an island
+/// (its problem and carried impulses) and picks each point's ω_i. Only single-point
+/// manifolds' factors are used (see the module docs); every factor must lie in [1, 2).
+///
+/// ```
+/// use deepcontact_core::{Real, WarmStartContext, WarmStartError};
+/// use deepcontact_warmstart::{RelaxedConfig, RelaxedWarmStart, Relaxation};
+///
+/// /// ω = 1.8 on points that carried an impulse, 1.2 on new ones.
+/// #[derive(Debug)]
+/// struct TrustCarried;
+/// impl Relaxation for TrustCarried {
+///     fn omegas(&mut self, ctx: &WarmStartContext<'_>, out: &mut Vec<Real>) -> Result<(), WarmStartError> {
+///         out.clear();
+///         out.extend(ctx.carried.iter().map(|c| if c.is_some() { 1.8 } else { 1.2 }));
+///         Ok(())
+///     }
+/// }
+///
+/// let provider = RelaxedWarmStart::new(RelaxedConfig::default())
+///     .unwrap()
+///     .with_relaxation("trusting-sor", Box::new(TrustCarried));
+/// assert_eq!(deepcontact_core::WarmStart::name(&provider), "trusting-sor");
+/// ```
+pub trait Relaxation: Send + std::fmt::Debug {
+    /// Fills `out` (cleared first) with one factor ω_i in [1, 2) per point of `ctx.problem`,
+    /// in point order.
+    fn omegas(
+        &mut self,
+        ctx: &WarmStartContext<'_>,
+        out: &mut Vec<Real>,
+    ) -> Result<(), WarmStartError>;
+}
+
 /// Carried impulses (zeros for new points) refined by over-relaxed Gauss-Seidel sweeps (see
 /// the module docs). Buffers are kept between calls.
 ///
@@ -63,6 +99,11 @@ impl Default for RelaxedConfig {
 /// ```
 pub struct RelaxedWarmStart {
     config: RelaxedConfig,
+    /// The provider's name (`sor` unless a policy renamed it).
+    name: String,
+    /// Per-point factors instead of `config.omega`, if any, and their buffer.
+    relaxation: Option<Box<dyn Relaxation>>,
+    omegas: Vec<Real>,
     /// The start the sweeps refine; `None`: the carried impulses (zeros for new points).
     start: Option<Box<dyn WarmStart>>,
     /// The start's impulses, restored when the sweeps diverge.
@@ -106,6 +147,9 @@ impl RelaxedWarmStart {
         )?;
         Ok(Self {
             config,
+            name: "sor".into(),
+            relaxation: None,
+            omegas: Vec::new(),
             start: None,
             first: Vec::new(),
             inner,
@@ -124,6 +168,15 @@ impl RelaxedWarmStart {
     /// provider, e.g. a learned one: `sor:start=graph`). A failing start fails the call.
     pub fn with_start(mut self, start: Box<dyn WarmStart>) -> Self {
         self.start = Some(start);
+        self
+    }
+
+    /// The same provider, named `name`, taking each point's factor from `relaxation` instead
+    /// of [`RelaxedConfig::omega`] (a factor outside [1, 2) fails the call with
+    /// [`WarmStartError::Provider`]).
+    pub fn with_relaxation(mut self, name: &str, relaxation: Box<dyn Relaxation>) -> Self {
+        self.name = name.into();
+        self.relaxation = Some(relaxation);
         self
     }
 
@@ -157,7 +210,9 @@ impl RelaxedWarmStart {
 impl std::fmt::Debug for RelaxedWarmStart {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("RelaxedWarmStart")
+            .field("name", &self.name)
             .field("config", &self.config)
+            .field("relaxation", &self.relaxation)
             .field("start", &self.start.as_ref().map(|s| s.name()))
             .field("dropped", &self.dropped)
             .finish_non_exhaustive()
@@ -166,7 +221,7 @@ impl std::fmt::Debug for RelaxedWarmStart {
 
 impl WarmStart for RelaxedWarmStart {
     fn name(&self) -> &str {
-        "sor"
+        &self.name
     }
 
     fn warm_start(
@@ -184,13 +239,35 @@ impl WarmStart for RelaxedWarmStart {
         self.first.clear();
         self.first.extend_from_slice(out);
         let problem = ctx.problem;
-        let omega = self.config.omega;
+        if let Some(policy) = &mut self.relaxation {
+            policy.omegas(ctx, &mut self.omegas)?;
+            if self.omegas.len() != problem.len() {
+                return Err(WarmStartError::WrongLength {
+                    expected: problem.len(),
+                    got: self.omegas.len(),
+                });
+            }
+            if let Some((i, w)) = self
+                .omegas
+                .iter()
+                .enumerate()
+                .find(|(_, w)| !(1.0..2.0).contains(*w))
+            {
+                return Err(WarmStartError::Provider(format!(
+                    "relaxation factor {w} of point {i} is outside [1, 2)"
+                )));
+            }
+        }
         let r = &mut self.relaxed;
         r.clear();
         r.bodies.extend_from_slice(&problem.bodies);
         r.points.extend_from_slice(&problem.points);
         for &(start, end) in &problem.manifolds {
             if end == start + 1 {
+                let omega = match self.relaxation {
+                    Some(_) => self.omegas[start as usize],
+                    None => self.config.omega,
+                };
                 let p = &mut r.points[start as usize];
                 p.normal_mass *= omega;
                 p.tangent_mass *= omega;

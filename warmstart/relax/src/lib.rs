@@ -1,0 +1,30 @@
+//! # deepcontact-relax
+//!
+//! A learned warm start built on `sor` (deepcontact-warmstart's over-relaxed sweeps from the
+//! carried impulses): instead of one factor ω for every contact, a small policy picks each
+//! contact's ω_i from six features of the point and its island ([`FEATURES`]: how vertical
+//! the contact is, how much load it carried, whether it is new, whether it touches a wall,
+//! how large its island is). The policy is a logistic map with six weights
+//! ([`RelaxationPolicy`]), fitted on the simulator itself: an evolution strategy over the
+//! weights that minimises the sweeps a step needs, the provider's and the world's PGS's
+//! together, on training seeds 0–99, selected on 100–109 (`models/train/relax.py`). Its own
+//! cost is six multiply-adds and one exponential per point.
+//!
+//! [`register`] adds `learned-sor` (the shipped policy, `models/learned-sor.json`, built in;
+//! `path=` reads another).
+//!
+//! ```
+//! let mut registry = deepcontact_core::Registry::empty();
+//! deepcontact_relax::register(&mut registry);
+//! let provider = registry.build_provider("learned-sor").unwrap();
+//! assert_eq!(provider.name(), "learned-sor");
+//! ```
+#![warn(missing_docs)]
+
+mod error;
+mod policy;
+mod registry;
+
+pub use error::RelaxError;
+pub use policy::{FEATURES, FORMAT, PolicyFile, RelaxationPolicy};
+pub use registry::{learned_sor, register};
