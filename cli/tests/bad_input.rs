@@ -107,6 +107,12 @@ fn cases(dir: &Path) -> Vec<Case> {
         models().join("pressure.json").display()
     );
 
+    // The relaxation policy: a CNN card in its place.
+    let policy_from_cnn_card = format!(
+        "learned-sor:path={}",
+        models().join("pressure.json").display()
+    );
+
     fn sim<'a>(extra: &[&'a str]) -> Vec<&'a str> {
         let mut v = vec!["simulate", "--steps", "2"];
         v.extend_from_slice(extra);
@@ -152,6 +158,16 @@ fn cases(dir: &Path) -> Vec<Case> {
             "a CNN card for a graph model",
             &sim(&["--warm-start", &graph_with_cnn_card]),
             "not `deepcontact-graph-card`",
+        ),
+        case(
+            "relaxation policy file missing",
+            &sim(&["--warm-start", "learned-sor:path=/nonexistent.json"]),
+            "/nonexistent.json",
+        ),
+        case(
+            "a CNN card as a relaxation policy",
+            &sim(&["--warm-start", &policy_from_cnn_card]),
+            "missing field",
         ),
         case(
             "Newton-only presolve parameter with another solver",
