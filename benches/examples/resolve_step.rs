@@ -1,6 +1,6 @@
 //! One step of a pile re-solved from several starts: the pile of `--seed` is stepped
 //! `--step` times with the `--drive` provider, then step `--step` is run on a copy of that
-//! world once per listed provider, and each run's velocity iterations, natural residual and
+//! world once per listed provider (solved by `--solver`, default `pgs`), and each run's velocity iterations, natural residual and
 //! capped islands are printed, with the provider's diagnostics. It tells whether a hard step is hard from every start (the
 //! solver's problem) or only from one (the start's).
 //!
@@ -22,6 +22,7 @@ fn main() {
 fn run() -> Result<(), Box<dyn std::error::Error>> {
     let (mut seed, mut step, mut drive, mut bodies) =
         (12345u64, 150u64, "builtin".to_string(), 100);
+    let mut solver_spec = "pgs".to_string();
     let mut providers = Vec::new();
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -31,6 +32,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
             "--step" => step = value()?.parse()?,
             "--bodies" => bodies = value()?.parse()?,
             "--drive" => drive = value()?,
+            "--solver" => solver_spec = value()?,
             "-h" | "--help" => {
                 println!(
                     "usage: resolve_step [--seed 12345] [--step 150] [--bodies 100] [--drive builtin] PROVIDER..."
@@ -51,11 +53,14 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     for _ in 0..step {
         world.step(driver.as_mut(), solver.as_mut(), &mut position)?;
     }
-    println!("pile {bodies}, seed {seed}, step {step} of `{drive}`'s world:");
+    println!(
+        "pile {bodies}, seed {seed}, step {step} of `{drive}`'s world, solved by `{solver_spec}`:"
+    );
     for spec in &providers {
         let mut copy = world.clone();
         let mut provider = registry.build_provider(spec)?;
-        let r = copy.step(provider.as_mut(), solver.as_mut(), &mut position)?;
+        let mut resolver = registry.build_solver(&solver_spec)?;
+        let r = copy.step(provider.as_mut(), resolver.as_mut(), &mut position)?;
         println!(
             "  {spec:<28} {:>5} iterations, natural residual {:.3e} N·s, {} of {} islands capped",
             r.velocity_iterations, r.natural_residual, r.capped_islands, r.islands
