@@ -101,29 +101,7 @@ pub fn run(py: Python<'_>, args: CompareArgs) -> Result<Py<PyList>, PythonBindin
             params: Default::default(),
         });
     }
-    let solvers = args
-        .solvers
-        .iter()
-        .map(|s| s.parse::<Spec>())
-        .collect::<Result<Vec<_>, _>>()?;
-    let config = Config {
-        warm_starts,
-        solvers,
-        seeds: args.seeds,
-        steps: args.steps,
-        bodies: args.bodies,
-        scene: args.scene,
-        world: world_settings(
-            args.tolerance,
-            args.max_iterations,
-            &args.norm,
-            &args.guard,
-            0.01,
-        )?,
-        threads: args.threads,
-        progress: false,
-        same_problems: args.same_problems,
-    };
+    let config = config(&args, warm_starts)?;
 
     let stop = AtomicBool::new(false);
     let (results, interrupt) = std::thread::scope(|scope| {
@@ -154,6 +132,33 @@ pub fn run(py: Python<'_>, args: CompareArgs) -> Result<Py<PyList>, PythonBindin
         py.detach(|| compare::write_outputs(&results, &dir, args.figures))?;
     }
     summary_rows(py, &compare::summarize(&results))
+}
+
+/// The comparison `args` describe, with `warm_starts` resolved.
+fn config(args: &CompareArgs, warm_starts: Vec<Spec>) -> Result<Config, PythonBindingError> {
+    let solvers = args
+        .solvers
+        .iter()
+        .map(|s| s.parse::<Spec>())
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(Config {
+        warm_starts,
+        solvers,
+        seeds: args.seeds.clone(),
+        steps: args.steps,
+        bodies: args.bodies,
+        scene: args.scene.clone(),
+        world: world_settings(
+            args.tolerance,
+            args.max_iterations,
+            &args.norm,
+            &args.guard,
+            0.01,
+        )?,
+        threads: args.threads,
+        progress: false,
+        same_problems: args.same_problems.clone(),
+    })
 }
 
 /// The summary rows as dicts, in the column order of summary.csv.

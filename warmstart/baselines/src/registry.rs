@@ -104,8 +104,33 @@ fn register_oracles(registry: &mut Registry) {
     );
 }
 
-/// The classical contenders of docs/RESEARCH.md: `tail`, `extrapolate`, `krylov`, `shock`, `best`.
+/// `sor`: over-relaxed sweeps from the carried impulses (or another provider's start).
+fn register_sor(registry: &mut Registry) {
+    registry.register_provider(
+        "sor",
+        "carried impulses refined by over-relaxed Gauss-Seidel sweeps (PGS on effective masses scaled by omega); \
+         omega=1.7, sweeps=300, tolerance=1e-4 (tuned on seeds 100–109), start=builtin (a registered provider's name: \
+         the start the sweeps refine)",
+        |p, r| {
+            let d = RelaxedConfig::default();
+            let config = RelaxedConfig {
+                omega: p.f64("omega", d.omega)?,
+                sweeps: u32_param(p, "sweeps", d.sweeps)?,
+                tolerance: p.f64("tolerance", d.tolerance)?,
+            };
+            let provider = RelaxedWarmStart::new(config)?;
+            Ok(Box::new(match p.string("start") {
+                None | Some("builtin") => provider,
+                Some(name) => provider.with_start(r.build_provider(name)?),
+            }))
+        },
+    );
+}
+
+/// The classical contenders of docs/RESEARCH.md: `tail`, `extrapolate`, `krylov`, `shock`,
+/// `best` (and `sor`, [`register_sor`]).
 fn register_contenders(registry: &mut Registry) {
+    register_sor(registry);
     registry.register_provider(
         "tail",
         "builtin plus the extrapolated rest of last step's solve (Aitken along the slow mode); \
@@ -168,25 +193,6 @@ fn register_contenders(registry: &mut Registry) {
             }
             let solver = r.build_solver(&solver)?;
             Ok(Box::new(PresolveWarmStart::new(solver, config)?))
-        },
-    );
-    registry.register_provider(
-        "sor",
-        "carried impulses refined by over-relaxed Gauss-Seidel sweeps (PGS on effective masses scaled by omega); \
-         omega=1.7, sweeps=300, tolerance=1e-4 (tuned on seeds 100–109), start=builtin (a registered provider's name: \
-         the start the sweeps refine)",
-        |p, r| {
-            let d = RelaxedConfig::default();
-            let config = RelaxedConfig {
-                omega: p.f64("omega", d.omega)?,
-                sweeps: u32_param(p, "sweeps", d.sweeps)?,
-                tolerance: p.f64("tolerance", d.tolerance)?,
-            };
-            let provider = RelaxedWarmStart::new(config)?;
-            Ok(Box::new(match p.string("start") {
-                None | Some("builtin") => provider,
-                Some(name) => provider.with_start(r.build_provider(name)?),
-            }))
         },
     );
     registry.register_provider(
