@@ -147,6 +147,16 @@ impl RelaxationPolicy {
 
     /// The [`FEATURES`] of point `i` of the context's island.
     pub fn features(ctx: &WarmStartContext<'_>, i: usize) -> [Real; 6] {
+        Self::point_features(ctx, i, Self::island_size(ctx))
+    }
+
+    /// The `log_island_points` feature, the same for every point of an island.
+    fn island_size(ctx: &WarmStartContext<'_>) -> Real {
+        (ctx.problem.len() as Real).ln() - 4.0
+    }
+
+    /// [`Self::features`] with the island's size feature given.
+    fn point_features(ctx: &WarmStartContext<'_>, i: usize, size: Real) -> [Real; 6] {
         let problem = ctx.problem;
         let p = &problem.points[i];
         let carried = ctx.carried.get(i).copied().flatten();
@@ -159,7 +169,7 @@ impl RelaxationPolicy {
             (1.0 + 10.0 * carried.map_or(0.0, |c| c.normal.max(0.0))).ln(),
             if carried.is_none() { 1.0 } else { 0.0 },
             if wall { 1.0 } else { 0.0 },
-            (problem.len() as Real).ln() - 4.0,
+            size,
         ]
     }
 }
@@ -171,7 +181,8 @@ impl Relaxation for RelaxationPolicy {
         out: &mut Vec<Real>,
     ) -> Result<(), WarmStartError> {
         out.clear();
-        out.extend((0..ctx.problem.len()).map(|i| self.omega(&Self::features(ctx, i))));
+        let size = Self::island_size(ctx);
+        out.extend((0..ctx.problem.len()).map(|i| self.omega(&Self::point_features(ctx, i, size))));
         Ok(())
     }
 }
