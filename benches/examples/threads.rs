@@ -26,6 +26,7 @@ struct Options {
     steps: u64,
     settle: u64,
     rounds: usize,
+    domains: usize,
 }
 
 fn parse() -> Result<Option<Options>, String> {
@@ -35,13 +36,14 @@ fn parse() -> Result<Option<Options>, String> {
         steps: 5,
         settle: 0,
         rounds: 3,
+        domains: 0,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         if a == "--help" || a == "-h" {
             println!(
                 "usage: threads [--bodies 10000] [--threads 2] [--steps 5] [--settle STEPS] \
-                 [--rounds 3]  (--settle default: 250 × (bodies / 100)^¼)"
+                 [--rounds 3] [--domains 0]  (--settle default: 250 × (bodies / 100)^¼)"
             );
             return Ok(None);
         }
@@ -53,6 +55,7 @@ fn parse() -> Result<Option<Options>, String> {
             "--steps" => o.steps = number(&value)?,
             "--settle" => o.settle = number(&value)?,
             "--rounds" => o.rounds = number(&value)? as usize,
+            "--domains" => o.domains = number(&value)? as usize,
             _ => return Err(format!("unknown option {a} (see --help)")),
         }
     }
@@ -82,25 +85,26 @@ struct Run {
 #[derive(Clone, Copy)]
 enum Config {
     Plain,
-    Chunked(usize),
+    Chunked(usize, usize),
 }
 
 impl Config {
     fn label(self) -> String {
         match self {
             Config::Plain => "1, unchunked".into(),
-            Config::Chunked(t) => format!("{t}"),
+            Config::Chunked(t, _) => format!("{t}"),
         }
     }
 
     fn solvers(self) -> (PgsSolver, PgsPositionSolver) {
-        let (threads, from) = match self {
-            Config::Plain => (1, usize::MAX),
-            Config::Chunked(t) => (t, PgsSettings::default().parallel_min_points),
+        let (threads, from, domains) = match self {
+            Config::Plain => (1, usize::MAX, 0),
+            Config::Chunked(t, d) => (t, PgsSettings::default().parallel_min_points, d),
         };
         let solver = PgsSolver::with_settings(PgsSettings {
             threads,
             parallel_min_points: from,
+            domains,
             ..PgsSettings::default()
         });
         let position = PgsPositionSolver::with_settings(PgsPositionSettings {
@@ -116,7 +120,7 @@ fn run(snapshot: &World, config: Config, steps: u64) -> Result<Run, String> {
     let mut world = snapshot.clone();
     let island_threads = match config {
         Config::Plain => 1,
-        Config::Chunked(t) => t,
+        Config::Chunked(t, _) => t,
     };
     world
         .set_settings(WorldSettings {
@@ -172,8 +176,8 @@ fn main() -> Result<(), String> {
     );
     let configs = [
         Config::Plain,
-        Config::Chunked(1),
-        Config::Chunked(o.threads),
+        Config::Chunked(1, o.domains),
+        Config::Chunked(o.threads, o.domains),
     ];
     let mut runs: [Vec<Run>; 3] = [Vec::new(), Vec::new(), Vec::new()];
     for round in 0..o.rounds {

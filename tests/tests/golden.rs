@@ -101,11 +101,18 @@ fn pile_golden_hash() {
     );
 }
 
-/// The chunked sweeps on every island (`parallel_from` 0) with 1, 2 and 4 threads.
+/// The chunked sweeps on every island (`parallel_from` 0) with 1, 2 and 4 threads: the
+/// velocity sweep in the chunked plan (`domains` 0), or in the domain plan of `domains`.
 fn chunked(threads: usize, position: bool) -> (PgsSolver, PgsPositionSolver) {
+    planned(threads, position, 0)
+}
+
+/// [`chunked`] with the velocity sweep's `domains` (0: the chunked plan).
+fn planned(threads: usize, position: bool, domains: usize) -> (PgsSolver, PgsPositionSolver) {
     let solver = PgsSolver::with_settings(PgsSettings {
         threads,
         parallel_min_points: 0,
+        domains,
         ..PgsSettings::default()
     });
     let position = if position {
@@ -148,5 +155,21 @@ fn pile_golden_hash_is_the_same_on_one_two_and_four_threads() {
     assert_ne!(
         hashes[0], PILE_12345_250_BUILTIN_PGS,
         "the coloured order did not run"
+    );
+}
+
+#[test]
+fn pile_in_the_domain_plan_ends_in_the_same_bits_on_one_two_and_four_threads() {
+    // Two domains on every island: another Gauss-Seidel order than the golden run's (so
+    // another hash), the same for every thread count.
+    let hashes = [1, 2, 4].map(|threads| {
+        let (solver, position) = planned(threads, false, 2);
+        pile_hash_on(solver, position, threads).0
+    });
+    assert_eq!(hashes[0], hashes[1], "domain plan, 1 and 2 threads");
+    assert_eq!(hashes[0], hashes[2], "domain plan, 1 and 4 threads");
+    assert_ne!(
+        hashes[0], PILE_12345_250_BUILTIN_PGS,
+        "the domain plan did not run"
     );
 }

@@ -10,10 +10,13 @@
 //! the stop rule holds) → **store impulses** (write them back, natural-map residual).
 //!
 //! **Threads.** An island of [`PgsSettings::parallel_min_points`] points or more (default
-//! 2048) is swept colour by colour in fixed chunks ([`PgsSettings::threads`], `pgs:threads=N`);
-//! the position pass does the same with its points coloured
-//! ([`PgsPositionSettings::threads`]). Threads claim the chunks of a colour from one queue and
-//! a colour starts once the previous one is done; each chunk's measures are folded in chunk
+//! 2048) is swept in the domain plan ([`PgsSettings::domains`], default 2;
+//! [`PgsSettings::threads`], `pgs:threads=N`): its bodies cut into domains along their Z-order,
+//! each domain's manifolds swept as an island of its own, domains side by side on threads,
+//! then the manifolds across the cuts. With `domains = 0` it is swept colour by colour in
+//! fixed chunks instead. The position pass sweeps such islands colour by colour in chunks
+//! ([`PgsPositionSettings::threads`]): threads claim the chunks of a colour from one queue and
+//! a colour starts once the previous one is done. Every part's measures are folded in a fixed
 //! order, so the result is bit-identical for any thread count. Smaller islands run on the
 //! calling thread.
 //!
@@ -29,11 +32,13 @@ mod registry;
 mod sync;
 mod velocity;
 mod velocity_chunked;
+mod velocity_domains;
 mod z_order;
 
 pub use position::{PgsPositionSettings, PgsPositionSolver};
 pub use registry::{MAX_THREADS, register};
 pub use velocity::{LANES, Ordering, PgsSettings, PgsSolver};
+pub use velocity_domains::MAX_DOMAINS;
 
 /// Errors of this crate (wrapped into [`deepcontact_core::CoreError`] at the trait boundary).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

@@ -2,13 +2,13 @@
 
 use deepcontact_core::registry::Registry;
 
-use crate::{Ordering, PgsSettings, PgsSolver};
+use crate::{MAX_DOMAINS, Ordering, PgsSettings, PgsSolver};
 
 /// The most threads `pgs:threads=` accepts.
 pub const MAX_THREADS: u64 = 64;
 
 /// Registers `pgs` (parameters `block=true|false`, `order=coloured|sequential`,
-/// `lanes=true|false`, `start=projected|raw`, `threads=1..64`, `parallel_from=POINTS`;
+/// `lanes=true|false`, `start=projected|raw`, `threads=1..64`, `parallel_from=POINTS`, `domains=0..63`;
 /// defaults: [`PgsSettings::default`]).
 pub fn register(registry: &mut Registry) {
     registry.register_solver(
@@ -16,7 +16,9 @@ pub fn register(registry: &mut Registry) {
         "sequential-impulse projected Gauss-Seidel (Box2D v2.4); block=true|false, \
          order=coloured|sequential, lanes=true|false, start=projected|raw, threads=N (default 1; \
          bit-identical for any N), parallel_from=POINTS (islands from this size are swept in \
-         fixed chunks that threads share; default 2048)",
+         fixed chunks that threads share; default 2048), domains=N (such islands cut into N \
+         domains that threads sweep side by side, then the manifolds across the cuts; 0: \
+         colours shared in chunks instead; default 2)",
         |p| {
             let d = PgsSettings::default();
             let block_solver = p.bool("block", d.block_solver)?;
@@ -32,6 +34,14 @@ pub fn register(registry: &mut Registry) {
             let parallel_min_points =
                 usize::try_from(p.u64("parallel_from", d.parallel_min_points as u64)?)
                     .unwrap_or(usize::MAX);
+            let domains = p.u64("domains", d.domains as u64)?;
+            if domains > MAX_DOMAINS as u64 {
+                return Err(p.invalid(
+                    "domains",
+                    &domains.to_string(),
+                    format!("must be 0 to {MAX_DOMAINS}"),
+                ));
+            }
             let raw_start = match p.choice("start", &["projected", "raw"])? {
                 None => d.raw_start,
                 Some(v) => v == "raw",
@@ -48,6 +58,7 @@ pub fn register(registry: &mut Registry) {
                 raw_start,
                 threads: threads as usize,
                 parallel_min_points,
+                domains: domains as usize,
                 ..d
             })) as Box<dyn deepcontact_core::VelocitySolver>)
         },

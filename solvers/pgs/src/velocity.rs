@@ -36,13 +36,24 @@ pub struct PgsSettings {
     /// as 1; no more than the cores the process may use are started). The result is
     /// bit-identical for every thread count.
     pub threads: usize,
-    /// Islands with at least this many contact points are swept in the chunked plan of
-    /// [`threads`](Self::threads) (default 2048): each colour's batches cut into fixed
+    /// Islands with at least this many contact points are swept in the domain plan or the
+    /// chunked plan ([`domains`](Self::domains)) of [`threads`](Self::threads) (default
+    /// 2048), with bodies renumbered in Z-order. Needs [`Ordering::Coloured`] and
+    /// [`lanes`](Self::lanes). In the chunked plan each colour's batches are cut into fixed
     /// chunks whose impulse-change measures are combined in chunk order, whatever the thread
-    /// count. Needs [`Ordering::Coloured`] and [`lanes`](Self::lanes). The ∞ and contact
-    /// norms, the impulses and the velocities are bit-identical to the unchunked sweep; only
-    /// `Σ Δλ²` (the L2 norm) is summed in another order.
+    /// count; the ∞ and contact norms, the impulses and the velocities are bit-identical to
+    /// the unchunked sweep, only `Σ Δλ²` (the L2 norm) is summed in another order.
     pub parallel_min_points: usize,
+    /// Domains of the domain plan for islands of [`parallel_min_points`](Self::parallel_min_points)
+    /// points or more (default 2; 0: the chunked plan instead; at most 63). The island's
+    /// bodies are cut into this many runs of their Z-order holding about as many manifolds
+    /// each; each domain's manifolds are swept as an island of their own — threads sweep
+    /// domains side by side, each on memory no other thread writes — then the few manifolds
+    /// across the cuts on one thread. No more threads than domains work on an island. Another
+    /// Gauss-Seidel order than the unchunked sweep's, so other (equally valid) bits; the same
+    /// bits for any thread count. The chunked plan (`0`) keeps the unchunked sweep's bits but
+    /// shares every colour between threads through atomics, which scales worse.
+    pub domains: usize,
 }
 
 impl Default for PgsSettings {
@@ -55,6 +66,7 @@ impl Default for PgsSettings {
             raw_start: false,
             threads: 1,
             parallel_min_points: 2048,
+            domains: 2,
         }
     }
 }
@@ -129,20 +141,20 @@ impl Row {
 /// One manifold: its body pair with their inverse masses, its rows, and block-solver data.
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct Manifold {
-    a: u32,
-    b: u32,
-    start: u32,
-    count: u32,
-    ma: Real,
-    ia: Real,
-    mb: Real,
-    ib: Real,
-    block: Option<Block>,
+    pub(crate) a: u32,
+    pub(crate) b: u32,
+    pub(crate) start: u32,
+    pub(crate) count: u32,
+    pub(crate) ma: Real,
+    pub(crate) ia: Real,
+    pub(crate) mb: Real,
+    pub(crate) ib: Real,
+    pub(crate) block: Option<Block>,
 }
 
 /// Block-solver data of a 2-point manifold: `K` and its inverse.
 #[derive(Debug, Clone, Copy, Default)]
-struct Block {
+pub(crate) struct Block {
     k11: Real,
     k12: Real,
     k22: Real,
@@ -206,9 +218,9 @@ pub(crate) struct Vel {
 pub struct PgsSolver {
     /// Options.
     pub settings: PgsSettings,
-    rows: Vec<Row>,
-    manifolds: Vec<Manifold>,
-    vel: Vec<Vel>,
+    pub(crate) rows: Vec<Row>,
+    pub(crate) manifolds: Vec<Manifold>,
+    pub(crate) vel: Vec<Vel>,
     /// Colour bit masks used per body while colouring.
     body_colours: Vec<u64>,
     /// Colour of each manifold, and the scratch copy used to reorder.
@@ -223,6 +235,8 @@ pub struct PgsSolver {
     /// The instruction set the sweep loops run in, detected once when the solver is made:
     /// AVX2 + FMA (x86-64-v3) where the CPU has them, else the baseline. Same bits either way.
     arch: pulp::Arch,
+    /// The domain plan's parts ([`PgsSettings::domains`]; empty otherwise).
+    domains: crate::velocity_domains::Domains,
 }
 
 impl PgsSolver {
@@ -241,8 +255,7 @@ impl PgsSolver {
 
     /// Stage 1, prepare: copy the problem into rows, manifolds and packed velocities.
     fn prepare(&mut self, problem: &ContactProblem, start: &[Impulse]) {
-        self.batches.clear();
-        self.segments.clear();
+        self.reset_plan();
         // The chunked plan's grid (none for the plain sweep: not a pass over the points more).
         let z = self
             .plans_chunked(problem.points.len())
@@ -325,8 +338,10 @@ impl PgsSolver {
                 (m.a, m.b) = (new[m.a as usize], new[m.b as usize]);
             }
         }
-        if self.settings.ordering == Ordering::Coloured {
-            self.colour(problem, z.as_ref());
+        // The domain plan colours each of its parts instead (after the warm start).
+        if self.settings.ordering == Ordering::Coloured && !self.plans_domains(problem.points.len())
+        {
+            self.colour(problem.bodies.len(), z.as_ref().map(|z| (z, problem)));
         }
     }
 
@@ -338,15 +353,31 @@ impl PgsSolver {
             && points >= self.settings.parallel_min_points
     }
 
+    /// Whether an island of `points` contact points is swept in the domain plan of
+    /// [`crate::velocity_domains`].
+    fn plans_domains(&self, points: usize) -> bool {
+        self.plans_chunked(points) && self.settings.domains > 0
+    }
+
+    /// Forgets the sweep plan (batches and colours), before a new one is built.
+    pub(crate) fn reset_plan(&mut self) {
+        self.batches.clear();
+        self.segments.clear();
+    }
+
     /// Greedy colouring in problem order: each manifold takes the lowest colour that
     /// neither of its movable bodies has yet (64 colours; the rare manifold that finds
     /// none goes to a last, sequential colour). Immovable bodies never conflict: the
     /// loop does not write them. Manifolds are then stably sorted by colour.
     /// With `z` (the chunked plan), each colour is then ordered in Z-order.
-    fn colour(&mut self, problem: &ContactProblem, z: Option<&crate::z_order::ZOrder>) {
+    pub(crate) fn colour(
+        &mut self,
+        bodies: usize,
+        space: Option<(&crate::z_order::ZOrder, &ContactProblem)>,
+    ) {
         const OVERFLOW: u8 = 64;
         self.body_colours.clear();
-        self.body_colours.resize(problem.bodies.len(), 0);
+        self.body_colours.resize(bodies, 0);
         self.colours.clear();
         let mut counts = [0u32; 65];
         for m in &self.manifolds {
@@ -392,7 +423,7 @@ impl PgsSolver {
             offsets[c as usize] += 1;
         }
         std::mem::swap(&mut self.manifolds, &mut self.scratch);
-        if let Some(z) = z {
+        if let Some((z, problem)) = space {
             self.order_colours_in_space(problem, z, &counts);
         }
         if self.settings.lanes {
@@ -491,7 +522,7 @@ impl PgsSolver {
     }
 
     /// Copies the batched impulses back into their rows.
-    fn sync_rows(&mut self) {
+    pub(crate) fn sync_rows(&mut self) {
         for batch in &self.batches {
             for lane in 0..LANES {
                 if let Some(r) = self.rows.get_mut(batch.row[lane] as usize) {
@@ -517,7 +548,7 @@ impl PgsSolver {
     /// per-contact measure only with `CONTACT` (the hot loop carries no extra work otherwise).
     /// Inlined into [`Self::solve_loop`]'s instruction-set context.
     #[inline(always)]
-    fn iterate<const CONTACT: bool>(&mut self) -> Sweep {
+    pub(crate) fn iterate<const CONTACT: bool>(&mut self) -> Sweep {
         let mut acc = Sweep::default();
         if self.segments.is_empty() {
             for m in &self.manifolds {
@@ -872,7 +903,7 @@ pub(crate) fn sweep_batch<const CONTACT: bool, V: Velocities + ?Sized>(
 
 /// Whether a body with these inverse masses can move.
 #[inline(always)]
-fn movable(inv_mass: Real, inv_inertia: Real) -> bool {
+pub(crate) fn movable(inv_mass: Real, inv_inertia: Real) -> bool {
     inv_mass != 0.0 || inv_inertia != 0.0
 }
 
@@ -1045,8 +1076,23 @@ impl VelocitySolver for PgsSolver {
         report
             .residual_l2
             .reserve(settings.max_iterations.min(4096) as usize);
-        let (it, verdict) = if self.plans_chunked(problem.points.len()) && !self.segments.is_empty()
-        {
+        let (it, verdict) = if self.plans_domains(problem.points.len()) {
+            self.domains.build(
+                self.settings.domains,
+                &self.manifolds,
+                &self.rows,
+                &self.vel,
+                self.settings,
+            );
+            let run = self.domains.solve(
+                crate::sync::effective_threads(self.settings.threads),
+                self.arch,
+                settings,
+                report,
+            );
+            self.domains.write_back(&mut self.rows, &mut self.vel);
+            run
+        } else if self.plans_chunked(problem.points.len()) && !self.segments.is_empty() {
             crate::velocity_chunked::solve_chunked(
                 &mut crate::velocity_chunked::Sweepable {
                     batches: &mut self.batches,
@@ -1325,6 +1371,7 @@ mod tests {
                         let settings = PgsSettings {
                             threads,
                             parallel_min_points: 0,
+                            domains: 0,
                             ..PgsSettings::default()
                         };
                         solve_bits_with(&problem, &start, settings, &stop)
@@ -1351,7 +1398,14 @@ mod tests {
             let start: Vec<Impulse> = (0..problem.len())
                 .map(|i| Impulse::new(0.01 * i as Real, 0.001 * i as Real))
                 .collect();
-            for (threads, parallel_min_points) in [(1, usize::MAX), (1, 0), (2, 0)] {
+            let plans = [
+                (1, usize::MAX, 0),
+                (1, 0, 0),
+                (2, 0, 0),
+                (1, 0, 2),
+                (2, 0, 3),
+            ];
+            for (threads, parallel_min_points, domains) in plans {
                 for norm in [ResidualNorm::Infinity, ResidualNorm::Contact] {
                     let stop = SolverSettings {
                         norm,
@@ -1361,13 +1415,17 @@ mod tests {
                     let settings = PgsSettings {
                         threads,
                         parallel_min_points,
+                        domains,
                         ..PgsSettings::default()
                     };
                     let baseline =
                         solve_bits_on(&problem, &start, settings, &stop, pulp::Arch::Scalar);
                     let fast = solve_bits_on(&problem, &start, settings, &stop, detected);
                     assert!(baseline.0.2 > 1, "ran {} iterations", baseline.0.2);
-                    assert_eq!(baseline, fast, "{threads} threads, {norm:?}");
+                    assert_eq!(
+                        baseline, fast,
+                        "{threads} threads, {domains} domains, {norm:?}"
+                    );
                 }
             }
         }
@@ -1397,5 +1455,205 @@ mod tests {
             batched += solver.batches.len();
         }
         assert!(batched > 0, "no batch was formed");
+    }
+
+    #[test]
+    fn domain_plan_is_bit_identical_for_one_to_four_threads() {
+        // Every norm, 1 to 4 domains (4 domains on the 100-body pile leave a large cut), a
+        // start with load on every point; the residuals of every iteration are compared too.
+        for problem in pile_and_pyramid() {
+            let start: Vec<Impulse> = (0..problem.len())
+                .map(|i| Impulse::new(0.01 * i as Real, 0.001 * i as Real))
+                .collect();
+            for norm in [
+                ResidualNorm::Infinity,
+                ResidualNorm::Contact,
+                ResidualNorm::L2,
+            ] {
+                let stop = SolverSettings {
+                    norm,
+                    tolerance: 1e-6,
+                    ..SolverSettings::default()
+                };
+                for domains in 1..=4 {
+                    let runs: Vec<_> = (1..=4)
+                        .map(|threads| {
+                            let settings = PgsSettings {
+                                threads,
+                                parallel_min_points: 0,
+                                domains,
+                                ..PgsSettings::default()
+                            };
+                            solve_bits_with(&problem, &start, settings, &stop)
+                        })
+                        .collect();
+                    assert!(runs[0].0.2 > 1, "ran {} iterations", runs[0].0.2);
+                    for (k, r) in runs.iter().enumerate().skip(1) {
+                        assert!(
+                            r == &runs[0],
+                            "{norm:?}, {domains} domains: {} threads differ from 1",
+                            k + 1
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn domain_plan_gives_the_same_bits_on_one_to_five_real_threads() {
+        // Straight to the domain loop, past the clamp to the machine's cores: 4 domains of the
+        // 100-body pile on up to five threads (more threads than domains work on none).
+        let problem = pile_problem();
+        let stop = SolverSettings {
+            tolerance: 1e-5,
+            ..SolverSettings::default()
+        };
+        let runs: Vec<_> = (1..=5)
+            .map(|threads| {
+                let mut solver = PgsSolver::with_settings(PgsSettings {
+                    parallel_min_points: 0,
+                    ..PgsSettings::default()
+                });
+                solver.prepare(&problem, &vec![Impulse::ZERO; problem.len()]);
+                solver.warm_start();
+                let mut report = SolveReport::default();
+                let d = &mut solver.domains;
+                d.build(
+                    4,
+                    &solver.manifolds,
+                    &solver.rows,
+                    &solver.vel,
+                    solver.settings,
+                );
+                let (it, verdict) = d.solve(threads, solver.arch, &stop, &mut report);
+                d.write_back(&mut solver.rows, &mut solver.vel);
+                let rows: Vec<u64> = solver
+                    .rows
+                    .iter()
+                    .flat_map(|r| [r.ln.to_bits(), r.lt.to_bits()])
+                    .collect();
+                let vel: Vec<u64> = solver
+                    .vel
+                    .iter()
+                    .flat_map(|v| [v.vx.to_bits(), v.vy.to_bits(), v.w.to_bits()])
+                    .collect();
+                (it, verdict, rows, vel, report.residual_l2)
+            })
+            .collect();
+        assert_eq!(runs[0].1, Verdict::Converged);
+        assert!(runs[0].0 > 10);
+        for r in &runs[1..] {
+            assert!(r == &runs[0]);
+        }
+    }
+
+    #[test]
+    fn domain_plan_reaches_the_unchunked_sweeps_accuracy() {
+        // Another Gauss-Seidel order, the same problem: at a tight tolerance both stop at a
+        // natural residual of the same order, and the velocities agree to that order.
+        for problem in pile_and_pyramid() {
+            let stop = SolverSettings {
+                tolerance: 1e-9,
+                max_iterations: 20_000,
+                ..SolverSettings::default()
+            };
+            let solve = |settings: PgsSettings| {
+                let mut solver = PgsSolver::with_settings(settings);
+                let mut imp = vec![Impulse::ZERO; problem.len()];
+                let mut vel = vec![Velocity::default(); problem.bodies.len()];
+                let mut report = SolveReport::default();
+                solver
+                    .solve(&problem, &stop, &mut imp, &mut vel, &mut report)
+                    .unwrap();
+                (vel, report)
+            };
+            let (plain, plain_report) = solve(PgsSettings::default());
+            let (split, split_report) = solve(PgsSettings {
+                parallel_min_points: 0,
+                threads: 2,
+                ..PgsSettings::default()
+            });
+            assert!(plain_report.converged && split_report.converged);
+            assert!(
+                split_report.natural_residual < 1e-6,
+                "domain plan stopped at {:e}",
+                split_report.natural_residual
+            );
+            let scale = plain
+                .iter()
+                .map(|v| v.linear.norm().max(v.angular.abs()))
+                .fold(1.0, Real::max);
+            for (a, b) in plain.iter().zip(&split) {
+                let d = (a.linear - b.linear)
+                    .norm()
+                    .max((a.angular - b.angular).abs());
+                assert!(d < 1e-5 * scale, "velocities differ by {d:e}");
+            }
+        }
+    }
+
+    #[test]
+    fn domains_own_their_movable_bodies_and_the_cut_holds_the_rest() {
+        // Every manifold in exactly one part, every row once; a movable body in one domain
+        // only; a cut manifold moves bodies of two domains.
+        let problem = pile_problem();
+        let mut solver = PgsSolver::with_settings(PgsSettings {
+            parallel_min_points: 0,
+            ..PgsSettings::default()
+        });
+        solver.prepare(&problem, &vec![Impulse::ZERO; problem.len()]);
+        for n in 1..=5 {
+            let d = &mut solver.domains;
+            d.build(
+                n,
+                &solver.manifolds,
+                &solver.rows,
+                &solver.vel,
+                solver.settings,
+            );
+            let manifolds: usize = d.parts.iter().map(|p| p.manifolds.len()).sum();
+            assert_eq!(manifolds, solver.manifolds.len(), "{n} domains");
+            let mut rows: Vec<u32> = d.rows_of.iter().flatten().copied().collect();
+            rows.sort_unstable();
+            assert_eq!(rows, (0..problem.len() as u32).collect::<Vec<_>>());
+            let mut owner = vec![None; solver.vel.len()];
+            for (p, part) in d.parts[..n].iter().enumerate() {
+                for m in &part.manifolds {
+                    for (b, moves) in [(m.a, movable(m.ma, m.ia)), (m.b, movable(m.mb, m.ib))] {
+                        if moves {
+                            let body = d.bodies_of[p][b as usize] as usize;
+                            assert!(owner[body].is_none_or(|o| o == p), "body {body}");
+                            owner[body] = Some(p);
+                        }
+                    }
+                }
+            }
+            let cut = &d.parts[n];
+            for m in &cut.manifolds {
+                let body = |b: u32| d.bodies_of[n][b as usize] as usize;
+                assert!(movable(m.ma, m.ia) && movable(m.mb, m.ib));
+                let (a, b) = (owner[body(m.a)], owner[body(m.b)]);
+                assert!(
+                    a.is_none() || b.is_none() || a != b,
+                    "a cut manifold inside a domain"
+                );
+            }
+            // Each movable body of the cut is linked to its domain's slot of the same body.
+            assert_eq!(d.link_ranges.len(), n);
+            for (p, range) in d.link_ranges.iter().enumerate() {
+                for &(s, l) in &d.links[range.clone()] {
+                    assert_eq!(d.bodies_of[n][s as usize], d.bodies_of[p][l as usize]);
+                }
+            }
+            if n == 1 {
+                assert!(cut.manifolds.is_empty(), "one domain leaves no cut");
+            } else {
+                assert!(
+                    !cut.manifolds.is_empty(),
+                    "{n} domains of a pile cut nothing"
+                );
+            }
+        }
     }
 }
