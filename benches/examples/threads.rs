@@ -1,8 +1,10 @@
 //! One big island on several threads: the settled pile of `--bodies` circles (default
 //! 10 000) stepped under the thesis stop rule (cap 1 000, ∞-norm < 1e-4, position cap 250)
 //! from the same snapshot, alternately for `--rounds` rounds: the plain one-thread solvers
-//! (unchunked sweep, position pass in problem order), the chunked plan on 1 thread and on
-//! `--threads` threads (islands side by side, colours shared), as `simulate --threads` runs. Prints ms per step (whole step, velocity solve, the rest) per thread
+//! (unchunked sweep, position pass in problem order), and the planned sweeps on 1 thread and on
+//! `--threads` threads (islands side by side; the velocity sweep in the domain plan of
+//! `--domains` domains, default 2, or with `--domains 0` in the chunked plan; the position
+//! pass's colours shared), as `simulate --threads` runs. Prints ms per step (whole step, velocity solve, the rest) per thread
 //! count and the ratio T threads / 1 thread, and checks that every run ends in the same
 //! bits (positions, velocities) whatever the thread count.
 //!
@@ -36,14 +38,14 @@ fn parse() -> Result<Option<Options>, String> {
         steps: 5,
         settle: 0,
         rounds: 3,
-        domains: 0,
+        domains: PgsSettings::default().domains,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         if a == "--help" || a == "-h" {
             println!(
                 "usage: threads [--bodies 10000] [--threads 2] [--steps 5] [--settle STEPS] \
-                 [--rounds 3] [--domains 0]  (--settle default: 250 × (bodies / 100)^¼)"
+                 [--rounds 3] [--domains 2]  (--settle default: 250 × (bodies / 100)^¼)"
             );
             return Ok(None);
         }

@@ -26,6 +26,7 @@
 //! the same operations in the same order, so the results are bit-identical either way.
 #![warn(missing_docs)]
 
+mod partition;
 mod position;
 mod position_chunked;
 mod registry;
@@ -35,10 +36,10 @@ mod velocity_chunked;
 mod velocity_domains;
 mod z_order;
 
+pub use partition::MAX_DOMAINS;
 pub use position::{PgsPositionSettings, PgsPositionSolver};
 pub use registry::{MAX_THREADS, register};
 pub use velocity::{LANES, Ordering, PgsSettings, PgsSolver};
-pub use velocity_domains::MAX_DOMAINS;
 
 /// Errors of this crate (wrapped into [`deepcontact_core::CoreError`] at the trait boundary).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

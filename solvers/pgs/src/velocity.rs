@@ -1622,7 +1622,7 @@ mod tests {
                 for m in &part.manifolds {
                     for (b, moves) in [(m.a, movable(m.ma, m.ia)), (m.b, movable(m.mb, m.ib))] {
                         if moves {
-                            let body = d.bodies_of[p][b as usize] as usize;
+                            let body = d.partition.bodies_of[p][b as usize] as usize;
                             assert!(owner[body].is_none_or(|o| o == p), "body {body}");
                             owner[body] = Some(p);
                         }
@@ -1631,7 +1631,7 @@ mod tests {
             }
             let cut = &d.parts[n];
             for m in &cut.manifolds {
-                let body = |b: u32| d.bodies_of[n][b as usize] as usize;
+                let body = |b: u32| d.partition.bodies_of[n][b as usize] as usize;
                 assert!(movable(m.ma, m.ia) && movable(m.mb, m.ib));
                 let (a, b) = (owner[body(m.a)], owner[body(m.b)]);
                 assert!(
@@ -1640,10 +1640,13 @@ mod tests {
                 );
             }
             // Each movable body of the cut is linked to its domain's slot of the same body.
-            assert_eq!(d.link_ranges.len(), n);
-            for (p, range) in d.link_ranges.iter().enumerate() {
-                for &(s, l) in &d.links[range.clone()] {
-                    assert_eq!(d.bodies_of[n][s as usize], d.bodies_of[p][l as usize]);
+            assert_eq!(d.partition.link_ranges.len(), n);
+            for (p, range) in d.partition.link_ranges.iter().enumerate() {
+                for &(s, l) in &d.partition.links[range.clone()] {
+                    assert_eq!(
+                        d.partition.bodies_of[n][s as usize],
+                        d.partition.bodies_of[p][l as usize]
+                    );
                 }
             }
             if n == 1 {

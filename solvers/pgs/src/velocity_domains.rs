@@ -16,6 +16,7 @@ use std::sync::{Mutex, MutexGuard, PoisonError};
 
 use deepcontact_core::{ResidualNorm, SolveReport, SolverSettings};
 
+use crate::partition::Partition;
 use crate::sync::{Cell3, phase_starts, run_phased};
 use crate::velocity::{Manifold, PgsSettings, PgsSolver, Row, Sweep, Vel, Verdict, judge, movable};
 use crate::velocity_chunked::{publish, read};
@@ -23,43 +24,17 @@ use crate::velocity_chunked::{publish, read};
 /// The parts of the domain plan, rebuilt for every solve (buffers reused).
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Domains {
+    /// Which manifolds and bodies each part holds, and the cut's links to the domains.
+    pub(crate) partition: Partition,
     /// Domains `0..n`, then the cut, each a one-thread solver holding its part.
     pub(crate) parts: Vec<PgsSolver>,
     /// Per part, the island's row of each of its rows.
     pub(crate) rows_of: Vec<Vec<u32>>,
-    /// Per part, the island's body of each of its bodies.
-    pub(crate) bodies_of: Vec<Vec<u32>>,
-    /// The cut's movable bodies, domain by domain: (slot in the cut, slot in the domain).
-    pub(crate) links: Vec<(u32, u32)>,
-    /// Per domain, its run of `links`.
-    pub(crate) link_ranges: Vec<Range<usize>>,
-    /// Scratch: each island body's slot in the part being built (`u32::MAX`: none).
-    slot: Vec<u32>,
-    /// Scratch: the part of each manifold.
-    part_of: Vec<u32>,
-    /// Scratch: the parts of each island body, as bits.
-    used: Vec<u64>,
-}
-
-/// The most domains of the plan: a body's parts are bits of a `u64`, the cut's included.
-pub const MAX_DOMAINS: usize = 63;
-
-/// The part index of a manifold's movable bodies: their domain, or `n` (the cut) when they
-/// lie in two domains. A manifold without a movable body (not swept in effect) goes to
-/// domain 0.
-fn part_of(m: &Manifold, domain: &impl Fn(u32) -> u32, n: u32) -> u32 {
-    let a = movable(m.ma, m.ia).then(|| domain(m.a));
-    let b = movable(m.mb, m.ib).then(|| domain(m.b));
-    match (a, b) {
-        (Some(a), Some(b)) if a != b => n,
-        (Some(d), _) | (None, Some(d)) => d,
-        (None, None) => 0,
-    }
 }
 
 impl Domains {
     /// Cuts the island (`manifolds`, `rows`, `vel`: the solver's, after the warm start, bodies
-    /// in Z-order) into `n` domains (1 to [`MAX_DOMAINS`], clamped) and the cut, and builds
+    /// in Z-order) into `n` domains (1 to [`MAX_DOMAINS`](crate::MAX_DOMAINS), clamped) and the cut, and builds
     /// each part's sweep plan.
     pub(crate) fn build(
         &mut self,
@@ -69,59 +44,20 @@ impl Domains {
         vel: &[Vel],
         settings: PgsSettings,
     ) {
-        let n = n.clamp(1, MAX_DOMAINS);
-        let bodies = vel.len();
-        // Where each domain's run of bodies starts: cut where the manifolds counted at their
-        // first movable body reach k / n of the total.
-        let key = |m: &Manifold| match (movable(m.ma, m.ia), movable(m.mb, m.ib)) {
-            (true, true) => m.a.min(m.b),
-            (true, false) => m.a,
-            (false, true) => m.b,
-            (false, false) => 0,
-        };
-        let mut per_body = vec![0u32; bodies + 1];
-        for m in manifolds {
-            per_body[key(m) as usize] += 1;
-        }
-        let mut starts = Vec::with_capacity(n);
-        let mut seen = 0usize;
-        for (b, &count) in per_body.iter().enumerate() {
-            while starts.len() < n && seen >= starts.len() * manifolds.len() / n {
-                starts.push(b as u32);
-            }
-            seen += count as usize;
-        }
-        starts.resize(n, bodies as u32);
-        let domain = |b: u32| (starts.partition_point(|&s| s <= b) - 1) as u32;
-        self.part_of.clear();
-        self.part_of
-            .extend(manifolds.iter().map(|m| part_of(m, &domain, n as u32)));
-        // The parts each body belongs to, as bits: a part's bodies are those of its manifolds,
-        // and a domain holds as well its movable bodies that only the cut touches.
-        self.used.clear();
-        self.used.resize(bodies, 0);
-        for (m, &q) in manifolds.iter().zip(&self.part_of) {
-            for (b, moves) in [(m.a, movable(m.ma, m.ia)), (m.b, movable(m.mb, m.ib))] {
-                self.used[b as usize] |= 1 << q;
-                if moves && q as usize == n {
-                    self.used[b as usize] |= 1 << domain(b);
-                }
-            }
-        }
+        self.partition.build(n, vel.len(), manifolds.len(), |k| {
+            let m = &manifolds[k];
+            [(m.a, movable(m.ma, m.ia)), (m.b, movable(m.mb, m.ib))]
+        });
+        let n = self.partition.n;
         self.parts.resize_with(n + 1, PgsSolver::default);
         self.rows_of.resize_with(n + 1, Vec::new);
-        self.bodies_of.resize_with(n + 1, Vec::new);
-        self.slot.clear();
-        self.slot.resize(bodies, u32::MAX);
         for p in 0..=n {
             self.build_part(p, manifolds, rows, vel, settings);
         }
-        self.link_cut(n, &domain);
     }
 
-    /// Builds part `p`: its bodies in island order (a domain also holds its movable bodies
-    /// that only the cut touches, so that it owns every one of them), its rows, its manifolds
-    /// renumbered, then its colours and batches.
+    /// Builds part `p`: its bodies' velocities, its rows, its manifolds renumbered, then its
+    /// colours and batches.
     fn build_part(
         &mut self,
         p: usize,
@@ -130,32 +66,29 @@ impl Domains {
         vel: &[Vel],
         settings: PgsSettings,
     ) {
-        let bodies_of = &mut self.bodies_of[p];
-        bodies_of.clear();
-        let bit = 1u64 << p;
-        bodies_of.extend((0..vel.len() as u32).filter(|&b| self.used[b as usize] & bit != 0));
-        for (s, &b) in bodies_of.iter().enumerate() {
-            self.slot[b as usize] = s as u32;
-        }
         let part = &mut self.parts[p];
         part.settings = PgsSettings {
             threads: 1,
             parallel_min_points: usize::MAX,
             ..settings
         };
+        let bodies = &self.partition.bodies_of[p];
         part.vel.clear();
-        part.vel.extend(bodies_of.iter().map(|&b| vel[b as usize]));
+        part.vel.extend(bodies.iter().map(|&b| vel[b as usize]));
+        let body_count = bodies.len();
+        let part_of = std::mem::take(&mut self.partition.part_of);
+        let slot = self.partition.slots(p);
         let rows_of = &mut self.rows_of[p];
         rows_of.clear();
         part.rows.clear();
         part.manifolds.clear();
-        for (m, &q) in manifolds.iter().zip(&self.part_of) {
+        for (m, &q) in manifolds.iter().zip(&part_of) {
             if q as usize != p {
                 continue;
             }
             let local = Manifold {
-                a: self.slot[m.a as usize],
-                b: self.slot[m.b as usize],
+                a: slot[m.a as usize],
+                b: slot[m.b as usize],
                 start: part.rows.len() as u32,
                 ..*m
             };
@@ -164,48 +97,13 @@ impl Domains {
             part.rows.extend_from_slice(&rows[range]);
             part.manifolds.push(local);
         }
+        self.partition.part_of = part_of;
         // Neighbours next to each other within a colour: the bodies are in Z-order. (The
         // start makes the key unique, so the unstable sort is deterministic.)
         part.manifolds
             .sort_unstable_by_key(|m| (m.a.min(m.b), m.a.max(m.b), m.start));
         part.reset_plan();
-        part.colour(bodies_of.len(), None);
-        for &b in bodies_of.iter() {
-            self.slot[b as usize] = u32::MAX;
-        }
-    }
-
-    /// The cut's movable bodies, linked to their slots in their domains.
-    fn link_cut(&mut self, n: usize, domain: &impl Fn(u32) -> u32) {
-        self.links.clear();
-        self.link_ranges.clear();
-        let cut = &self.bodies_of[n];
-        // (domain, slot in the cut) of every movable body of the cut.
-        let mut movers: Vec<(u32, u32)> = Vec::new();
-        for m in &self.parts[n].manifolds {
-            if movable(m.ma, m.ia) {
-                movers.push((domain(cut[m.a as usize]), m.a));
-            }
-            if movable(m.mb, m.ib) {
-                movers.push((domain(cut[m.b as usize]), m.b));
-            }
-        }
-        movers.sort_unstable();
-        movers.dedup();
-        let mut at = 0;
-        for d in 0..n as u32 {
-            let first = self.links.len();
-            while at < movers.len() && movers[at].0 == d {
-                let slot = movers[at].1;
-                let body = cut[slot as usize];
-                let local = self.bodies_of[d as usize]
-                    .binary_search(&body)
-                    .expect("a domain holds its bodies that the cut moves");
-                self.links.push((slot, local as u32));
-                at += 1;
-            }
-            self.link_ranges.push(first..self.links.len());
-        }
+        part.colour(body_count, None);
     }
 
     /// Copies the parts' impulses back into the island's rows and the domains' velocities
@@ -218,7 +116,7 @@ impl Domains {
                 rows[g as usize] = *r;
             }
             if p < n {
-                for (v, &g) in part.vel.iter().zip(&self.bodies_of[p]) {
+                for (v, &g) in part.vel.iter().zip(&self.partition.bodies_of[p]) {
                     vel[g as usize] = *v;
                 }
             }
@@ -246,7 +144,7 @@ impl Domains {
                 contact,
             });
         }
-        let (links, ranges) = (&self.links, &self.link_ranges);
+        let (links, ranges) = (&self.partition.links, &self.partition.link_ranges);
         // Each domain's bodies that the cut moves, passed through a mailbox of its own in
         // link order, so that a domain's velocities are only ever touched by the thread that
         // sweeps it (no cache line of theirs moves between cores): a domain takes the cut's
@@ -408,8 +306,8 @@ fn one_thread<const CONTACT: bool>(
         sweep.add(&sweep_cut::<CONTACT>(
             &mut cut[0],
             domains,
-            &d.links,
-            &d.link_ranges,
+            &d.partition.links,
+            &d.partition.link_ranges,
         ));
         it += 1;
         match judge(settings, it, &sweep, Some(report)) {
