@@ -4,7 +4,9 @@
 //! (unchunked sweep, position pass in problem order), and the planned sweeps on 1 thread and on
 //! `--threads` threads (islands side by side; the velocity sweep in the domain plan of
 //! `--domains` domains, default 2, or with `--domains 0` in the chunked plan; the position
-//! pass's colours shared), as `simulate --threads` runs. Prints ms per step (whole step, velocity solve, the rest) per thread
+//! pass likewise in domains or, with `--domains 0`, in shared colours), as `simulate
+//! --threads` runs. The pile is settled with the chunked plans (the snapshot of the earlier
+//! measurements). Prints ms per step (whole step, velocity solve, the rest) per thread
 //! count and the ratio T threads / 1 thread, and checks that every run ends in the same
 //! bits (positions, velocities) whatever the thread count.
 //!
@@ -112,6 +114,7 @@ impl Config {
         let position = PgsPositionSolver::with_settings(PgsPositionSettings {
             threads,
             parallel_min_points: from,
+            domains,
         });
         (solver, position)
     }
@@ -164,7 +167,18 @@ fn main() -> Result<(), String> {
     let t0 = Instant::now();
     let scene = scene::pile(SEED, o.bodies).map_err(|e| e.to_string())?;
     let mut world = scene.build(settle_world(50)).map_err(|e| e.to_string())?;
-    let (mut solver, mut position) = (PgsSolver::new(), PgsPositionSolver::new());
+    // Settled with the chunked plans, which the earlier measurements (docs/BENCHMARKS.md)
+    // settled with: the same snapshot for every version since.
+    let (mut solver, mut position) = (
+        PgsSolver::with_settings(PgsSettings {
+            domains: 0,
+            ..PgsSettings::default()
+        }),
+        PgsPositionSolver::with_settings(PgsPositionSettings {
+            domains: 0,
+            ..PgsPositionSettings::default()
+        }),
+    );
     for _ in 0..o.settle {
         world
             .step(&mut CarriedWarmStart, &mut solver, &mut position)

@@ -107,7 +107,8 @@ fn chunked(threads: usize, position: bool) -> (PgsSolver, PgsPositionSolver) {
     planned(threads, position, 0)
 }
 
-/// [`chunked`] with the velocity sweep's `domains` (0: the chunked plan).
+/// [`chunked`] with the velocity sweep's and the position pass's `domains` (0: the chunked
+/// and coloured plans).
 fn planned(threads: usize, position: bool, domains: usize) -> (PgsSolver, PgsPositionSolver) {
     let solver = PgsSolver::with_settings(PgsSettings {
         threads,
@@ -119,6 +120,7 @@ fn planned(threads: usize, position: bool, domains: usize) -> (PgsSolver, PgsPos
         PgsPositionSolver::with_settings(PgsPositionSettings {
             threads,
             parallel_min_points: 0,
+            domains,
         })
     } else {
         PgsPositionSolver::new()
@@ -160,10 +162,11 @@ fn pile_golden_hash_is_the_same_on_one_two_and_four_threads() {
 
 #[test]
 fn pile_in_the_domain_plan_ends_in_the_same_bits_on_one_two_and_four_threads() {
-    // Two domains on every island: another Gauss-Seidel order than the golden run's (so
-    // another hash), the same for every thread count.
+    // Two domains on every island, in the velocity sweep and the position pass: another
+    // Gauss-Seidel order than the golden run's (so another hash), the same for every thread
+    // count.
     let hashes = [1, 2, 4].map(|threads| {
-        let (solver, position) = planned(threads, false, 2);
+        let (solver, position) = planned(threads, true, 2);
         pile_hash_on(solver, position, threads).0
     });
     assert_eq!(hashes[0], hashes[1], "domain plan, 1 and 2 threads");

@@ -26,9 +26,11 @@
 //! the same operations in the same order, so the results are bit-identical either way.
 #![warn(missing_docs)]
 
+mod domain_sweep;
 mod partition;
 mod position;
 mod position_chunked;
+mod position_domains;
 mod registry;
 mod sync;
 mod velocity;

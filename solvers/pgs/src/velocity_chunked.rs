@@ -57,12 +57,12 @@ impl Velocities for Shared<'_> {
 }
 
 /// A slot's measures: `max`, `sum_sq`, `contact_sq`.
-pub(crate) fn publish(slot: &Cell3, s: &Sweep) {
+fn publish(slot: &Cell3, s: &Sweep) {
     slot.store([s.max, s.sum_sq, s.contact_sq]);
 }
 
 /// The measures of a slot.
-pub(crate) fn read(slot: &Cell3) -> Sweep {
+fn read(slot: &Cell3) -> Sweep {
     let [max, sum_sq, contact_sq] = slot.load();
     Sweep {
         max,

@@ -1,25 +1,15 @@
-//! The domain plan of a large island, on one thread or several.
+//! The domain plan of the velocity sweep of a large island, on one thread or several.
 //!
-//! The island's bodies (renumbered in Z-order by the solver) are cut into `n` runs holding
-//! about as many manifolds each: the domains. A manifold whose movable bodies all lie in one
-//! domain belongs to it; the others (across a cut) form one part more, the cut. Each part is
-//! an island of its own for the sweep — its rows, its bodies (renumbered in order), its
-//! colours and batches — so a domain is swept by the ordinary one-thread loop on memory no
-//! other thread touches. An iteration sweeps the domains (side by side on threads: they share
-//! no movable body, and immovable bodies are only read), then the cut on one thread, between
-//! copies of its movable bodies' velocities from and back to their domains. That is one
-//! Gauss-Seidel order of all manifolds, the same whatever the threads, and the parts' measures
-//! are folded in part order, so the result is bit-identical for any thread count.
-
-use std::ops::Range;
-use std::sync::{Mutex, MutexGuard, PoisonError};
+//! The island is cut into domains and the cut ([`Partition`]); each part is an island of its
+//! own for the sweep — its rows, its bodies (renumbered in order), its colours and batches —
+//! so a domain is swept by the ordinary one-thread loop (lanes and all) on memory no other
+//! thread touches, and [`sweep_parts`] runs the iterations.
 
 use deepcontact_core::{ResidualNorm, SolveReport, SolverSettings};
 
+use crate::domain_sweep::{Part, sweep_parts};
 use crate::partition::Partition;
-use crate::sync::{Cell3, phase_starts, run_phased};
 use crate::velocity::{Manifold, PgsSettings, PgsSolver, Row, Sweep, Vel, Verdict, judge, movable};
-use crate::velocity_chunked::{publish, read};
 
 /// The parts of the domain plan, rebuilt for every solve (buffers reused).
 #[derive(Debug, Clone, Default)]
@@ -133,102 +123,28 @@ impl Domains {
         settings: &SolverSettings,
         report: &mut SolveReport,
     ) -> (u32, Verdict) {
-        let n = self.parts.len() - 1;
         let contact = settings.norm == ResidualNorm::Contact;
-        let threads = threads.min(n).max(1);
-        if threads == 1 {
-            return arch.dispatch(OneThread {
-                domains: self,
-                settings,
-                report,
+        let mut parts: Vec<VelocityPart<'_>> = self
+            .parts
+            .iter_mut()
+            .map(|solver| VelocityPart {
+                solver,
+                arch,
                 contact,
-            });
-        }
-        let (links, ranges) = (&self.partition.links, &self.partition.link_ranges);
-        // Each domain's bodies that the cut moves, passed through a mailbox of its own in
-        // link order, so that a domain's velocities are only ever touched by the thread that
-        // sweeps it (no cache line of theirs moves between cores): a domain takes the cut's
-        // last values before its sweep and leaves its own after it; the cut takes the
-        // domains' values before its sweep and leaves its own after it.
-        let mail: Vec<Mutex<Vec<Vel>>> = ranges
-            .iter()
-            .zip(&self.parts)
-            .map(|(range, part)| {
-                let own = links[range.clone()]
-                    .iter()
-                    .map(|&(_, l)| part.vel[l as usize]);
-                Mutex::new(own.collect())
             })
             .collect();
-        let parts: Vec<Mutex<&mut PgsSolver>> = self.parts.iter_mut().map(Mutex::new).collect();
-        let slots: [Vec<Cell3>; 2] = [0, 1].map(|_| (0..=n).map(|_| Cell3::default()).collect());
-        let sweeps = Mutex::new(Vec::new());
-        let process = |item: usize, parity: usize| {
-            let sweep = if item < n {
-                let (mut part, mut mail) = (lock(&parts[item]), lock(&mail[item]));
-                let links = &links[ranges[item].clone()];
-                for (v, &(_, l)) in mail.iter().zip(links) {
-                    part.vel[l as usize] = *v;
-                }
-                let sweep = arch.dispatch(Part {
-                    part: &mut part,
-                    contact,
-                });
-                for (v, &(_, l)) in mail.iter_mut().zip(links) {
-                    *v = part.vel[l as usize];
-                }
-                sweep
-            } else {
-                let mut cut = lock(&parts[n]);
-                for (range, mail) in ranges.iter().zip(&mail) {
-                    for (v, &(s, _)) in lock(mail).iter().zip(&links[range.clone()]) {
-                        cut.vel[s as usize] = *v;
-                    }
-                }
-                let sweep = arch.dispatch(Part {
-                    part: &mut cut,
-                    contact,
-                });
-                for (range, mail) in ranges.iter().zip(&mail) {
-                    for (v, &(s, _)) in lock(mail).iter_mut().zip(&links[range.clone()]) {
-                        *v = cut.vel[s as usize];
-                    }
-                }
-                sweep
-            };
-            publish(&slots[parity][item], &sweep);
-        };
-        let judge_iteration = |it: u32, parity: usize| {
-            let mut sweep = Sweep::default();
-            for slot in &slots[parity] {
-                sweep.add(&read(slot));
-            }
-            let mut sweeps = sweeps.lock().unwrap_or_else(PoisonError::into_inner);
-            sweeps.push(sweep);
-            judge(settings, it + 1, &sweep, None) != Verdict::Continue
-        };
-        run_phased(
+        let stop =
+            |it: u32, sweep: &Sweep| judge(settings, it + 1, sweep, None) != Verdict::Continue;
+        let sweeps = sweep_parts(
+            &mut parts,
+            &self.partition,
             threads,
             settings.max_iterations,
-            &phase_starts([n, 1]),
-            &process,
-            &judge_iteration,
+            &stop,
         );
-        // The cut's last values into their domains.
-        for ((part, mail), range) in parts.iter().zip(&mail).zip(ranges) {
-            let mut part = lock(part);
-            for (v, &(_, l)) in lock(mail).iter().zip(&links[range.clone()]) {
-                part.vel[l as usize] = *v;
-            }
-        }
-        // The iterations' residuals into the report, and the verdict, as the judge saw them.
+        // The iterations' residuals into the report, and the verdict, as the loop saw them.
         let mut last = (0, Verdict::Continue);
-        for (k, sweep) in sweeps
-            .into_inner()
-            .unwrap_or_else(PoisonError::into_inner)
-            .iter()
-            .enumerate()
-        {
+        for (k, sweep) in sweeps.iter().enumerate() {
             last = (
                 k as u32 + 1,
                 judge(settings, k as u32 + 1, sweep, Some(report)),
@@ -238,101 +154,52 @@ impl Domains {
     }
 }
 
-/// The value behind `m` (a panicked sweep left nothing half-written that matters: the solve
-/// reports the panic).
-fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(PoisonError::into_inner)
-}
-
-/// One sweep of the cut: its movable bodies' velocities from their domains, the sweep, the
-/// velocities back.
-#[inline(always)]
-fn sweep_cut<const CONTACT: bool>(
-    cut: &mut PgsSolver,
-    domains: &mut [PgsSolver],
-    links: &[(u32, u32)],
-    ranges: &[Range<usize>],
-) -> Sweep {
-    for (domain, range) in domains.iter().zip(ranges) {
-        for &(s, l) in &links[range.clone()] {
-            cut.vel[s as usize] = domain.vel[l as usize];
-        }
-    }
-    let sweep = cut.iterate::<CONTACT>();
-    for (domain, range) in domains.iter_mut().zip(ranges) {
-        for &(s, l) in &links[range.clone()] {
-            domain.vel[l as usize] = cut.vel[s as usize];
-        }
-    }
-    sweep
-}
-
-/// The whole loop on the calling thread, compiled for the instruction set chosen at run time.
-struct OneThread<'a> {
-    domains: &'a mut Domains,
-    settings: &'a SolverSettings,
-    report: &'a mut SolveReport,
+/// A part of the velocity sweep: its solver, swept in the instruction set chosen at run time.
+struct VelocityPart<'a> {
+    solver: &'a mut PgsSolver,
+    arch: pulp::Arch,
     contact: bool,
 }
 
-impl pulp::WithSimd for OneThread<'_> {
-    type Output = (u32, Verdict);
+impl Part for VelocityPart<'_> {
+    type Value = Vel;
+    type Measures = Sweep;
 
-    #[inline(always)]
-    fn with_simd<S: pulp::Simd>(self, _simd: S) -> Self::Output {
-        if self.contact {
-            one_thread::<true>(self.domains, self.settings, self.report)
-        } else {
-            one_thread::<false>(self.domains, self.settings, self.report)
-        }
+    #[inline]
+    fn get(&self, slot: u32) -> Vel {
+        self.solver.vel[slot as usize]
     }
-}
 
-/// The domain plan's loop on one thread: the same sweeps in the same order as on several.
-#[inline(always)]
-fn one_thread<const CONTACT: bool>(
-    d: &mut Domains,
-    settings: &SolverSettings,
-    report: &mut SolveReport,
-) -> (u32, Verdict) {
-    let n = d.parts.len() - 1;
-    let (domains, cut) = d.parts.split_at_mut(n);
-    let mut it = 0;
-    while it < settings.max_iterations {
-        let mut sweep = Sweep::default();
-        for part in domains.iter_mut() {
-            sweep.add(&part.iterate::<CONTACT>());
-        }
-        sweep.add(&sweep_cut::<CONTACT>(
-            &mut cut[0],
-            domains,
-            &d.partition.links,
-            &d.partition.link_ranges,
-        ));
-        it += 1;
-        match judge(settings, it, &sweep, Some(report)) {
-            Verdict::Continue => {}
-            end => return (it, end),
-        }
+    #[inline]
+    fn set(&mut self, slot: u32, value: Vel) {
+        self.solver.vel[slot as usize] = value;
     }
-    (it, Verdict::Continue)
+
+    fn sweep(&mut self) -> Sweep {
+        let (solver, contact) = (&mut *self.solver, self.contact);
+        self.arch.dispatch(SweepOnce { solver, contact })
+    }
+
+    fn fold(into: &mut Sweep, m: &Sweep) {
+        into.add(m);
+    }
 }
 
 /// One sweep of one part, compiled for the instruction set chosen at run time.
-struct Part<'a> {
-    part: &'a mut PgsSolver,
+struct SweepOnce<'a> {
+    solver: &'a mut PgsSolver,
     contact: bool,
 }
 
-impl pulp::WithSimd for Part<'_> {
+impl pulp::WithSimd for SweepOnce<'_> {
     type Output = Sweep;
 
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _simd: S) -> Self::Output {
         if self.contact {
-            self.part.iterate::<true>()
+            self.solver.iterate::<true>()
         } else {
-            self.part.iterate::<false>()
+            self.solver.iterate::<false>()
         }
     }
 }

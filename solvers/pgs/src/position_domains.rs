@@ -1,0 +1,133 @@
+//! The domain plan of the position pass of a large island, on one thread or several.
+//!
+//! The island is cut into domains and the cut ([`Partition`]), as the velocity sweep's; each
+//! part visits its points in the island's order (no colours: one thread sweeps a part) on
+//! poses of its own, and [`sweep_parts`] runs the iterations. The pass's measures are minima
+//! and maxima, so only the order of the corrections decides the bits, and that order is the
+//! same for every thread count.
+
+use deepcontact_core::math::Pose;
+use deepcontact_core::{PositionReport, PositionSettings};
+
+use crate::domain_sweep::{Part, sweep_parts};
+use crate::partition::Partition;
+use crate::position::{PassMeasures, PosRow, correct_point};
+
+/// The parts of the position pass's domain plan (buffers reused from one island to the next).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct PositionDomains {
+    /// Which points and bodies each part holds, and the cut's links to the domains.
+    partition: Partition,
+    /// Per part, its rows (bodies renumbered to the part's slots), in the island's order.
+    rows: Vec<Vec<PosRow>>,
+    /// Per part, its bodies' poses.
+    poses: Vec<Vec<Pose>>,
+}
+
+impl PositionDomains {
+    /// Cuts the island (`rows` and `poses`, bodies in Z-order) into `n` domains (1 to
+    /// [`MAX_DOMAINS`](crate::MAX_DOMAINS), clamped) and the cut.
+    pub(crate) fn build(&mut self, n: usize, rows: &[PosRow], poses: &[Pose]) {
+        self.partition
+            .build(n, poses.len(), rows.len(), |k| rows[k].ends());
+        let n = self.partition.n;
+        self.rows.resize_with(n + 1, Vec::new);
+        self.poses.resize_with(n + 1, Vec::new);
+        for p in 0..=n {
+            let own = &mut self.poses[p];
+            own.clear();
+            own.extend(
+                self.partition.bodies_of[p]
+                    .iter()
+                    .map(|&b| poses[b as usize]),
+            );
+            let part_of = std::mem::take(&mut self.partition.part_of);
+            let slot = self.partition.slots(p);
+            let list = &mut self.rows[p];
+            list.clear();
+            list.extend(
+                rows.iter()
+                    .zip(&part_of)
+                    .filter(|&(_, &q)| q as usize == p)
+                    .map(|(row, _)| row.renumbered(slot)),
+            );
+            self.partition.part_of = part_of;
+        }
+    }
+
+    /// Runs the pass on up to `threads` threads (≥ 1; no more than the domains) under the stop
+    /// rule of `settings`, and writes the poses back (`poses`: the island's, as given to
+    /// [`Self::build`]).
+    pub(crate) fn solve(
+        &mut self,
+        threads: usize,
+        settings: &PositionSettings,
+        poses: &mut [Pose],
+        report: &mut PositionReport,
+    ) {
+        let mut parts: Vec<PositionPart<'_>> = self
+            .rows
+            .iter()
+            .zip(self.poses.iter_mut())
+            .map(|(rows, poses)| PositionPart {
+                rows,
+                poses,
+                settings,
+            })
+            .collect();
+        let stop =
+            |it: u32, m: &PassMeasures| m.judge(it, settings, &mut PositionReport::default());
+        let passes = sweep_parts(
+            &mut parts,
+            &self.partition,
+            threads,
+            settings.max_iterations,
+            &stop,
+        );
+        // The report as the last iteration left it.
+        if let Some((it, last)) = passes.iter().enumerate().next_back() {
+            last.judge(it as u32, settings, report);
+        }
+        // Each movable body from its domain (the cut's are their domains' too).
+        let n = self.partition.n;
+        for (own, bodies) in self.poses[..n].iter().zip(&self.partition.bodies_of) {
+            for (pose, &b) in own.iter().zip(bodies) {
+                poses[b as usize] = *pose;
+            }
+        }
+    }
+}
+
+/// A part of the pass: its rows and its poses.
+struct PositionPart<'a> {
+    rows: &'a [PosRow],
+    poses: &'a mut [Pose],
+    settings: &'a PositionSettings,
+}
+
+impl Part for PositionPart<'_> {
+    type Value = Pose;
+    type Measures = PassMeasures;
+
+    #[inline]
+    fn get(&self, slot: u32) -> Pose {
+        self.poses[slot as usize]
+    }
+
+    #[inline]
+    fn set(&mut self, slot: u32, value: Pose) {
+        self.poses[slot as usize] = value;
+    }
+
+    fn sweep(&mut self) -> PassMeasures {
+        let mut m = PassMeasures::default();
+        for row in self.rows {
+            m.merge(&correct_point(row, self.settings, &mut *self.poses, true));
+        }
+        m
+    }
+
+    fn fold(into: &mut PassMeasures, m: &PassMeasures) {
+        into.merge(m);
+    }
+}
