@@ -327,6 +327,11 @@ fn cases(dir: &Path) -> Vec<Case> {
             &sim(&["--solver", "pgs:threads=0"]),
             "threads",
         ),
+        case(
+            "solver spec domains=64",
+            &sim(&["--solver", "pgs:domains=64"]),
+            "must be 0 to 63",
+        ),
         case("unknown preset", &sim(&["--preset", "nope"]), "preset"),
         case(
             "bad shard",

@@ -59,9 +59,10 @@ fn scratch_dir(name: &str) -> PathBuf {
 
 #[test]
 fn compare_outputs_are_the_same_for_one_two_and_four_solver_threads() {
-    // Islands side by side and every island through the chunked sweep (`parallel_from=0`)
-    // on 1, 2 and 4 threads, for every default provider: the same step records and curves,
-    // and the same as the plain sweep one island after another (∞-norm stop rule).
+    // Islands side by side and every island through the chunked sweep (`parallel_from=0`,
+    // `domains=0`) on 1, 2 and 4 threads, for every default provider: the same step records
+    // and curves, and the same as the plain sweep one island after another (∞-norm stop
+    // rule).
     let config = |solver: &str, island_threads: usize| Config {
         solvers: split_spec_list(solver).unwrap(),
         world: deepcontact_core::WorldSettings {
@@ -72,12 +73,24 @@ fn compare_outputs_are_the_same_for_one_two_and_four_solver_threads() {
     };
     let plain = compare::run_experiment(&config("pgs", 1)).unwrap();
     for threads in [1, 2, 4] {
-        let spec = format!("pgs:parallel_from=0,threads={threads}");
+        let spec = format!("pgs:domains=0,parallel_from=0,threads={threads}");
         let mut chunked = compare::run_experiment(&config(&spec, threads)).unwrap();
         assert_eq!(chunked.solvers, [spec]);
         // The solver's name is the only difference.
         chunked.solvers.clone_from(&plain.solvers);
         assert_same_numbers(&plain, &chunked);
+    }
+    // Every island in the domain plan (3 domains): its own Gauss-Seidel order, the same
+    // numbers on 1, 2 and 4 threads.
+    let domains = |threads: usize| {
+        let spec = format!("pgs:domains=3,parallel_from=0,threads={threads}");
+        let mut run = compare::run_experiment(&config(&spec, threads)).unwrap();
+        run.solvers.clone_from(&plain.solvers);
+        run
+    };
+    let one = domains(1);
+    for threads in [2, 4] {
+        assert_same_numbers(&one, &domains(threads));
     }
 }
 

@@ -45,7 +45,7 @@ pub struct PgsSettings {
     /// the unchunked sweep, only `Σ Δλ²` (the L2 norm) is summed in another order.
     pub parallel_min_points: usize,
     /// Domains of the domain plan for islands of [`parallel_min_points`](Self::parallel_min_points)
-    /// points or more (default 2; 0: the chunked plan instead; at most 63). The island's
+    /// points or more (default 2; 0: the chunked plan instead; more than 63 count as 63; the registry refuses them). The island's
     /// bodies are cut into this many runs of their Z-order holding about as many manifolds
     /// each; each domain's manifolds are swept as an island of their own — threads sweep
     /// domains side by side, each on memory no other thread writes — then the few manifolds
