@@ -52,32 +52,8 @@ pub(crate) fn sweep_parts<P: Part>(
 ) -> Vec<P::Measures> {
     let n = partition.n;
     let (links, ranges) = (&partition.links, &partition.link_ranges);
-    let mut measures = Vec::new();
     if threads.min(n) <= 1 {
-        let (domains, cut) = parts.split_at_mut(n);
-        let cut = &mut cut[0];
-        for it in 0..max_iterations {
-            let mut all = P::Measures::default();
-            for part in domains.iter_mut() {
-                P::fold(&mut all, &part.sweep());
-            }
-            for (domain, range) in domains.iter().zip(ranges) {
-                for &(s, l) in &links[range.clone()] {
-                    cut.set(s, domain.get(l));
-                }
-            }
-            P::fold(&mut all, &cut.sweep());
-            for (domain, range) in domains.iter_mut().zip(ranges) {
-                for &(s, l) in &links[range.clone()] {
-                    domain.set(l, cut.get(s));
-                }
-            }
-            measures.push(all);
-            if stop(it, &all) {
-                break;
-            }
-        }
-        return measures;
+        return sweep_on_this_thread(parts, partition, max_iterations, stop);
     }
     let mail: Vec<Mutex<Vec<P::Value>>> = ranges
         .iter()
@@ -147,4 +123,41 @@ pub(crate) fn sweep_parts<P: Part>(
         }
     }
     done.into_inner().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// [`sweep_parts`] on the calling thread: the same sweeps in the same order, the cut's values
+/// copied straight between the parts.
+fn sweep_on_this_thread<P: Part>(
+    parts: &mut [P],
+    partition: &Partition,
+    max_iterations: u32,
+    stop: &(dyn Fn(u32, &P::Measures) -> bool + Sync),
+) -> Vec<P::Measures> {
+    let n = partition.n;
+    let (links, ranges) = (&partition.links, &partition.link_ranges);
+    let (domains, cut) = parts.split_at_mut(n);
+    let cut = &mut cut[0];
+    let mut measures = Vec::new();
+    for it in 0..max_iterations {
+        let mut all = P::Measures::default();
+        for part in domains.iter_mut() {
+            P::fold(&mut all, &part.sweep());
+        }
+        for (domain, range) in domains.iter().zip(ranges) {
+            for &(s, l) in &links[range.clone()] {
+                cut.set(s, domain.get(l));
+            }
+        }
+        P::fold(&mut all, &cut.sweep());
+        for (domain, range) in domains.iter_mut().zip(ranges) {
+            for &(s, l) in &links[range.clone()] {
+                domain.set(l, cut.get(s));
+            }
+        }
+        measures.push(all);
+        if stop(it, &all) {
+            break;
+        }
+    }
+    measures
 }

@@ -1299,10 +1299,49 @@ mod tests {
         problems
     }
 
-    #[test]
-    fn chunked_plan_gives_the_same_bits_on_one_to_five_real_threads() {
-        // Straight to the chunked loop, past the clamp to the machine's cores, one batch a
-        // chunk (so that a 100-body island has chunks for five threads).
+    /// A start with load on every point (growing with the point's index).
+    fn loaded_start(problem: &ContactProblem) -> Vec<Impulse> {
+        (0..problem.len())
+            .map(|i| Impulse::new(0.01 * i as Real, 0.001 * i as Real))
+            .collect()
+    }
+
+    /// A tight stop rule (1e-6) in each norm.
+    fn tight_stops() -> [SolverSettings; 3] {
+        [
+            ResidualNorm::Infinity,
+            ResidualNorm::Contact,
+            ResidualNorm::L2,
+        ]
+        .map(|norm| SolverSettings {
+            norm,
+            tolerance: 1e-6,
+            ..SolverSettings::default()
+        })
+    }
+
+    /// The solver's impulses (rows) and velocities as bits.
+    fn state_bits(solver: &PgsSolver) -> (Vec<u64>, Vec<u64>) {
+        let rows = solver
+            .rows
+            .iter()
+            .flat_map(|r| [r.ln.to_bits(), r.lt.to_bits()])
+            .collect();
+        let vel = solver
+            .vel
+            .iter()
+            .flat_map(|v| [v.vx.to_bits(), v.vy.to_bits(), v.w.to_bits()])
+            .collect();
+        (rows, vel)
+    }
+
+    /// Runs `sweep` (a loop straight past the clamp to the machine's cores) on the 100-body
+    /// pile from zero with 1 to 5 threads, after `settings`' prepare and warm start, and checks
+    /// that every run converges to the same bits (impulses, velocities, iterations, L2 curve).
+    fn same_bits_on_one_to_five_threads(
+        settings: PgsSettings,
+        sweep: impl Fn(&mut PgsSolver, usize, &SolverSettings, &mut SolveReport) -> (u32, Verdict),
+    ) {
         let problem = pile_problem();
         let stop = SolverSettings {
             tolerance: 1e-5,
@@ -1310,35 +1349,12 @@ mod tests {
         };
         let runs: Vec<_> = (1..=5)
             .map(|threads| {
-                let mut solver = PgsSolver::new();
+                let mut solver = PgsSolver::with_settings(settings);
                 solver.prepare(&problem, &vec![Impulse::ZERO; problem.len()]);
                 solver.warm_start();
                 let mut report = SolveReport::default();
-                let (it, verdict) = crate::velocity_chunked::solve_chunked(
-                    &mut crate::velocity_chunked::Sweepable {
-                        batches: &mut solver.batches,
-                        segments: &solver.segments,
-                        serial: &solver.scratch,
-                        rows: &mut solver.rows,
-                        vel: &mut solver.vel,
-                    },
-                    1,
-                    threads,
-                    solver.arch,
-                    &stop,
-                    &mut report,
-                );
-                solver.sync_rows();
-                let rows: Vec<u64> = solver
-                    .rows
-                    .iter()
-                    .flat_map(|r| [r.ln.to_bits(), r.lt.to_bits()])
-                    .collect();
-                let vel: Vec<u64> = solver
-                    .vel
-                    .iter()
-                    .flat_map(|v| [v.vx.to_bits(), v.vy.to_bits(), v.w.to_bits()])
-                    .collect();
+                let (it, verdict) = sweep(&mut solver, threads, &stop, &mut report);
+                let (rows, vel) = state_bits(&solver);
                 (it, verdict, rows, vel, report.residual_l2)
             })
             .collect();
@@ -1350,21 +1366,37 @@ mod tests {
     }
 
     #[test]
+    fn chunked_plan_gives_the_same_bits_on_one_to_five_real_threads() {
+        // One batch a chunk, so that a 100-body island has chunks for five threads.
+        same_bits_on_one_to_five_threads(
+            PgsSettings::default(),
+            |solver, threads, stop, report| {
+                let run = crate::velocity_chunked::solve_chunked(
+                    &mut crate::velocity_chunked::Sweepable {
+                        batches: &mut solver.batches,
+                        segments: &solver.segments,
+                        serial: &solver.scratch,
+                        rows: &mut solver.rows,
+                        vel: &mut solver.vel,
+                    },
+                    1,
+                    threads,
+                    solver.arch,
+                    stop,
+                    report,
+                );
+                solver.sync_rows();
+                run
+            },
+        );
+    }
+
+    #[test]
     fn chunked_sweep_is_bit_identical_for_one_two_and_four_threads() {
         for problem in pile_and_pyramid() {
-            let start: Vec<Impulse> = (0..problem.len())
-                .map(|i| Impulse::new(0.01 * i as Real, 0.001 * i as Real))
-                .collect();
-            for norm in [
-                ResidualNorm::Infinity,
-                ResidualNorm::Contact,
-                ResidualNorm::L2,
-            ] {
-                let stop = SolverSettings {
-                    norm,
-                    tolerance: 1e-6,
-                    ..SolverSettings::default()
-                };
+            let start = loaded_start(&problem);
+            for stop in tight_stops() {
+                let norm = stop.norm;
                 let unchunked = solve_bits_with(&problem, &start, PgsSettings::default(), &stop);
                 let runs: Vec<_> = [1, 2, 4]
                     .map(|threads| {
@@ -1395,9 +1427,7 @@ mod tests {
         // item dispatched), both sweep variants (`CONTACT` or not).
         let detected = pulp::Arch::new();
         for problem in pile_and_pyramid() {
-            let start: Vec<Impulse> = (0..problem.len())
-                .map(|i| Impulse::new(0.01 * i as Real, 0.001 * i as Real))
-                .collect();
+            let start = loaded_start(&problem);
             let plans = [
                 (1, usize::MAX, 0),
                 (1, 0, 0),
@@ -1462,19 +1492,9 @@ mod tests {
         // Every norm, 1 to 4 domains (4 domains on the 100-body pile leave a large cut), a
         // start with load on every point; the residuals of every iteration are compared too.
         for problem in pile_and_pyramid() {
-            let start: Vec<Impulse> = (0..problem.len())
-                .map(|i| Impulse::new(0.01 * i as Real, 0.001 * i as Real))
-                .collect();
-            for norm in [
-                ResidualNorm::Infinity,
-                ResidualNorm::Contact,
-                ResidualNorm::L2,
-            ] {
-                let stop = SolverSettings {
-                    norm,
-                    tolerance: 1e-6,
-                    ..SolverSettings::default()
-                };
+            let start = loaded_start(&problem);
+            for stop in tight_stops() {
+                let norm = stop.norm;
                 for domains in 1..=4 {
                     let runs: Vec<_> = (1..=4)
                         .map(|threads| {
@@ -1502,50 +1522,25 @@ mod tests {
 
     #[test]
     fn domain_plan_gives_the_same_bits_on_one_to_five_real_threads() {
-        // Straight to the domain loop, past the clamp to the machine's cores: 4 domains of the
-        // 100-body pile on up to five threads (more threads than domains work on none).
-        let problem = pile_problem();
-        let stop = SolverSettings {
-            tolerance: 1e-5,
-            ..SolverSettings::default()
+        // 4 domains of the 100-body pile on up to five threads (more threads than domains work
+        // on none).
+        let settings = PgsSettings {
+            parallel_min_points: 0,
+            ..PgsSettings::default()
         };
-        let runs: Vec<_> = (1..=5)
-            .map(|threads| {
-                let mut solver = PgsSolver::with_settings(PgsSettings {
-                    parallel_min_points: 0,
-                    ..PgsSettings::default()
-                });
-                solver.prepare(&problem, &vec![Impulse::ZERO; problem.len()]);
-                solver.warm_start();
-                let mut report = SolveReport::default();
-                let d = &mut solver.domains;
-                d.build(
-                    4,
-                    &solver.manifolds,
-                    &solver.rows,
-                    &solver.vel,
-                    solver.settings,
-                );
-                let (it, verdict) = d.solve(threads, solver.arch, &stop, &mut report);
-                d.write_back(&mut solver.rows, &mut solver.vel);
-                let rows: Vec<u64> = solver
-                    .rows
-                    .iter()
-                    .flat_map(|r| [r.ln.to_bits(), r.lt.to_bits()])
-                    .collect();
-                let vel: Vec<u64> = solver
-                    .vel
-                    .iter()
-                    .flat_map(|v| [v.vx.to_bits(), v.vy.to_bits(), v.w.to_bits()])
-                    .collect();
-                (it, verdict, rows, vel, report.residual_l2)
-            })
-            .collect();
-        assert_eq!(runs[0].1, Verdict::Converged);
-        assert!(runs[0].0 > 10);
-        for r in &runs[1..] {
-            assert!(r == &runs[0]);
-        }
+        same_bits_on_one_to_five_threads(settings, |solver, threads, stop, report| {
+            let d = &mut solver.domains;
+            d.build(
+                4,
+                &solver.manifolds,
+                &solver.rows,
+                &solver.vel,
+                solver.settings,
+            );
+            let run = d.solve(threads, solver.arch, stop, report);
+            d.write_back(&mut solver.rows, &mut solver.vel);
+            run
+        });
     }
 
     #[test]
