@@ -18,13 +18,13 @@ pub struct PgsPositionSettings {
     /// islands visit their points in problem order, as Box2D does. The orders give different
     /// (equally valid) Gauss-Seidel results.
     pub parallel_min_points: usize,
-    /// Domains of the domain plan (default 2; more than 63 count as 63): the island's bodies cut into this
-    /// many runs of their Z-order holding about as many points each, each domain's points
-    /// visited in problem order by one thread on poses of its own, domains side by side, then
-    /// the points across the cuts on one thread. No more threads than domains work on an
-    /// island. `0`: the coloured plan instead — points coloured greedily so that no two of a
-    /// colour move the same body, visited colour by colour, each colour's points in fixed
-    /// chunks that threads share through atomics (which scales worse).
+    /// Domains of the domain plan (default 2; more than 63 count as 63): the island's bodies cut
+    /// into this many runs of their Z-order holding about as many points each, each domain's points
+    /// visited in problem order by one thread on poses of its own, domains side by side, then the
+    /// points across the cuts on one thread. No more threads than domains work on an island. `0`:
+    /// the coloured plan instead — points coloured greedily so that no two of a colour move the
+    /// same body, visited colour by colour, each colour's points in fixed chunks that threads share
+    /// through atomics (which scales worse).
     pub domains: usize,
 }
 

@@ -45,14 +45,14 @@ pub struct PgsSettings {
     /// the unchunked sweep, only `Σ Δλ²` (the L2 norm) is summed in another order.
     pub parallel_min_points: usize,
     /// Domains of the domain plan for islands of [`parallel_min_points`](Self::parallel_min_points)
-    /// points or more (default 2; 0: the chunked plan instead; more than 63 count as 63; the registry refuses them). The island's
-    /// bodies are cut into this many runs of their Z-order holding about as many manifolds
-    /// each; each domain's manifolds are swept as an island of their own — threads sweep
-    /// domains side by side, each on memory no other thread writes — then the few manifolds
-    /// across the cuts on one thread. No more threads than domains work on an island. Another
-    /// Gauss-Seidel order than the unchunked sweep's, so other (equally valid) bits; the same
-    /// bits for any thread count. The chunked plan (`0`) keeps the unchunked sweep's bits but
-    /// shares every colour between threads through atomics, which scales worse.
+    /// points or more (default 2; 0: the chunked plan instead; more than 63 count as 63, and the
+    /// registry refuses them). The island's bodies are cut into this many runs of their Z-order
+    /// holding about as many manifolds each; each domain's manifolds are swept as an island of
+    /// their own — threads sweep domains side by side, each on memory no other thread writes — then
+    /// the few manifolds across the cuts on one thread. No more threads than domains work on an
+    /// island. Another Gauss-Seidel order than the unchunked sweep's, so other (equally valid)
+    /// bits; the same bits for any thread count. The chunked plan (`0`) keeps the unchunked sweep's
+    /// bits but shares every colour between threads through atomics, which scales worse.
     pub domains: usize,
 }
 
@@ -369,7 +369,8 @@ impl PgsSolver {
     /// neither of its movable bodies has yet (64 colours; the rare manifold that finds
     /// none goes to a last, sequential colour). Immovable bodies never conflict: the
     /// loop does not write them. Manifolds are then stably sorted by colour.
-    /// With `z` (the chunked plan), each colour is then ordered in Z-order.
+    /// With `space` (the chunked plan's grid and the problem), each colour is then ordered in
+    /// Z-order.
     pub(crate) fn colour(
         &mut self,
         bodies: usize,
