@@ -24,8 +24,8 @@ pub(crate) struct Domains {
 
 impl Domains {
     /// Cuts the island (`manifolds`, `rows`, `vel`: the solver's, after the warm start, bodies
-    /// in Z-order) into `n` domains (1 to [`MAX_DOMAINS`](crate::MAX_DOMAINS), clamped) and the cut, and builds
-    /// each part's sweep plan.
+    /// in Z-order) into `n` domains (1 to [`MAX_DOMAINS`](crate::MAX_DOMAINS), clamped) and
+    /// the cut, and builds each part's sweep plan.
     pub(crate) fn build(
         &mut self,
         n: usize,
