@@ -70,7 +70,7 @@ pub(crate) fn sweep_parts<P: Part>(
     let parts: Vec<Mutex<&mut P>> = parts.iter_mut().map(Mutex::new).collect();
     let slots: [Vec<Mutex<P::Measures>>; 2] =
         [0, 1].map(|_| (0..=n).map(|_| Mutex::default()).collect());
-    let done = Mutex::new(Vec::new());
+    let done = Mutex::new(Vec::with_capacity(max_iterations.min(4096) as usize));
     let process = |item: usize, parity: usize| {
         let m = if item < n {
             let (mut part, mut mail) = (lock(&parts[item]), lock(&mail[item]));
@@ -137,7 +137,8 @@ fn sweep_on_this_thread<P: Part>(
     let (links, ranges) = (&partition.links, &partition.link_ranges);
     let (domains, cut) = parts.split_at_mut(n);
     let cut = &mut cut[0];
-    let mut measures = Vec::new();
+    // Room for every iteration's measures up front: no growth inside the loop.
+    let mut measures = Vec::with_capacity(max_iterations.min(4096) as usize);
     for it in 0..max_iterations {
         let mut all = P::Measures::default();
         for part in domains.iter_mut() {
