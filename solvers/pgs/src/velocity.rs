@@ -13,6 +13,9 @@ use deepcontact_core::{
 
 use crate::PgsError;
 
+#[cfg(target_arch = "x86_64")]
+mod avx2;
+
 /// Options of the PGS solver.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PgsSettings {
@@ -205,12 +208,16 @@ pub(crate) struct Segment {
     pub(crate) manifolds: std::ops::Range<usize>,
 }
 
-/// Velocity `(vx, vy, ω)` of one body.
+/// Velocity `(vx, vy, ω)` of one body, 32 bytes and aligned to them, so that one load reads
+/// it whole ([`avx2`]).
 #[derive(Debug, Clone, Copy, Default)]
+#[repr(C, align(32))]
 pub(crate) struct Vel {
     pub(crate) vx: Real,
     pub(crate) vy: Real,
     pub(crate) w: Real,
+    /// Unused (whatever the last store left); never read as a velocity.
+    pub(crate) pad: Real,
 }
 
 /// Projected Gauss-Seidel on sequential impulses (Box2D v2.4's `b2ContactSolver`).
@@ -268,6 +275,7 @@ impl PgsSolver {
             vx: b.linear_velocity.x,
             vy: b.linear_velocity.y,
             w: b.angular_velocity,
+            pad: 0.0,
         };
         self.vel.clear();
         if self.bodies.is_active() {
@@ -549,7 +557,7 @@ impl PgsSolver {
     /// per-contact measure only with `CONTACT` (the hot loop carries no extra work otherwise).
     /// Inlined into [`Self::solve_loop`]'s instruction-set context.
     #[inline(always)]
-    pub(crate) fn iterate<const CONTACT: bool>(&mut self) -> Sweep {
+    pub(crate) fn iterate<const CONTACT: bool, K: BatchKernel>(&mut self, kernel: K) -> Sweep {
         let mut acc = Sweep::default();
         if self.segments.is_empty() {
             for m in &self.manifolds {
@@ -559,9 +567,11 @@ impl PgsSolver {
         }
         let mut lanes = LaneSweep::default();
         for seg in &self.segments {
-            for batch in &mut self.batches[seg.batches.clone()] {
-                sweep_batch::<CONTACT, _>(batch, self.vel.as_mut_slice(), &mut lanes);
-            }
+            kernel.sweep::<CONTACT>(
+                &mut self.batches[seg.batches.clone()],
+                self.vel.as_mut_slice(),
+                &mut lanes,
+            );
             for m in &self.scratch[seg.manifolds.clone()] {
                 sweep_manifold::<CONTACT, _>(m, &mut self.rows, self.vel.as_mut_slice(), &mut acc);
             }
@@ -578,27 +588,30 @@ impl PgsSolver {
         settings: &SolverSettings,
         report: &mut SolveReport,
     ) -> (u32, Verdict) {
-        let arch = self.arch;
-        arch.dispatch(SolveLoop {
-            solver: self,
-            settings,
-            report,
-        })
+        dispatch(
+            self.arch,
+            SolveLoop {
+                solver: self,
+                settings,
+                report,
+            },
+        )
     }
 
     /// [`Self::solve_loop`]'s body, inlined into the instruction-set context.
     #[inline(always)]
-    fn solve_loop_here(
+    fn solve_loop_here<K: BatchKernel>(
         &mut self,
         settings: &SolverSettings,
         report: &mut SolveReport,
+        kernel: K,
     ) -> (u32, Verdict) {
         let mut it = 0;
         while it < settings.max_iterations {
             let sweep = if settings.norm == ResidualNorm::Contact {
-                self.iterate::<true>()
+                self.iterate::<true, K>(kernel)
             } else {
-                self.iterate::<false>()
+                self.iterate::<false, K>(kernel)
             };
             it += 1;
             match judge(settings, it, &sweep, Some(report)) {
@@ -669,12 +682,76 @@ struct SolveLoop<'a> {
     report: &'a mut SolveReport,
 }
 
-impl pulp::WithSimd for SolveLoop<'_> {
+impl KernelOp for SolveLoop<'_> {
     type Output = (u32, Verdict);
 
     #[inline(always)]
+    fn run<K: BatchKernel>(self, kernel: K) -> Self::Output {
+        self.solver
+            .solve_loop_here(self.settings, self.report, kernel)
+    }
+}
+
+/// An operation of [`dispatch`]: sweeps compiled for one instruction set, running their
+/// batches with that set's [`BatchKernel`].
+pub(crate) trait KernelOp {
+    /// What the operation returns.
+    type Output;
+    /// Runs the operation with `kernel`.
+    fn run<K: BatchKernel>(self, kernel: K) -> Self::Output;
+}
+
+/// Runs `op` compiled for `arch` (its kernels inlined): with AVX2 detected, with the
+/// intrinsics kernel of [`avx2`]; otherwise with the portable loop, which the compiler
+/// vectorises for the set as it can. Both give the same bits.
+#[inline]
+pub(crate) fn dispatch<Op: KernelOp>(arch: pulp::Arch, op: Op) -> Op::Output {
+    #[cfg(target_arch = "x86_64")]
+    if let pulp::Arch::V3(simd) = arch {
+        return <pulp::x86::V3 as pulp::Simd>::vectorize(simd, WithKernel(op, simd));
+    }
+    arch.dispatch(WithKernel(op, Portable))
+}
+
+/// [`dispatch`]'s operation with its kernel, as [`pulp::WithSimd`] wants it.
+struct WithKernel<Op, K>(Op, K);
+
+impl<Op: KernelOp, K: BatchKernel> pulp::WithSimd for WithKernel<Op, K> {
+    type Output = Op::Output;
+
+    #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _simd: S) -> Self::Output {
-        self.solver.solve_loop_here(self.settings, self.report)
+        self.0.run(self.1)
+    }
+}
+
+/// How a sweep runs a [`Batch`]: the portable loop ([`sweep_batch`], which the compiler
+/// vectorises as it can) or, with AVX2 detected, the same operations written out in its
+/// intrinsics ([`avx2`]). Both give the same bits.
+pub(crate) trait BatchKernel: Copy {
+    /// Sweeps the batches of one colour in order on `vel`, folding their measures into
+    /// `lanes`.
+    fn sweep<const CONTACT: bool>(self, b: &mut [Batch], vel: &mut [Vel], lanes: &mut LaneSweep);
+}
+
+/// [`BatchKernel`] of the portable loop.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Portable;
+
+impl BatchKernel for Portable {
+    #[inline(always)]
+    fn sweep<const CONTACT: bool>(self, b: &mut [Batch], vel: &mut [Vel], lanes: &mut LaneSweep) {
+        for batch in b {
+            sweep_batch::<CONTACT, _>(batch, vel, lanes);
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl BatchKernel for pulp::x86::V3 {
+    #[inline(always)]
+    fn sweep<const CONTACT: bool>(self, b: &mut [Batch], vel: &mut [Vel], lanes: &mut LaneSweep) {
+        avx2::sweep_colour::<CONTACT>(self, b, vel, lanes);
     }
 }
 
@@ -889,6 +966,7 @@ pub(crate) fn sweep_batch<const CONTACT: bool, V: Velocities + ?Sized>(
                 vx: avx[i],
                 vy: avy[i],
                 w: aw[i],
+                pad: 0.0,
             },
         );
         vel.set(
@@ -897,6 +975,7 @@ pub(crate) fn sweep_batch<const CONTACT: bool, V: Velocities + ?Sized>(
                 vx: bvx[i],
                 vy: bvy[i],
                 w: bw[i],
+                pad: 0.0,
             },
         );
     }

@@ -177,7 +177,7 @@ impl Part for VelocityPart<'_> {
 
     fn sweep(&mut self) -> Sweep {
         let (solver, contact) = (&mut *self.solver, self.contact);
-        self.arch.dispatch(SweepOnce { solver, contact })
+        crate::velocity::dispatch(self.arch, SweepOnce { solver, contact })
     }
 
     fn fold(into: &mut Sweep, m: &Sweep) {
@@ -191,15 +191,15 @@ struct SweepOnce<'a> {
     contact: bool,
 }
 
-impl pulp::WithSimd for SweepOnce<'_> {
+impl crate::velocity::KernelOp for SweepOnce<'_> {
     type Output = Sweep;
 
     #[inline(always)]
-    fn with_simd<S: pulp::Simd>(self, _simd: S) -> Self::Output {
+    fn run<K: crate::velocity::BatchKernel>(self, kernel: K) -> Self::Output {
         if self.contact {
-            self.solver.iterate::<true>()
+            self.solver.iterate::<true, K>(kernel)
         } else {
-            self.solver.iterate::<false>()
+            self.solver.iterate::<false, K>(kernel)
         }
     }
 }

@@ -1,0 +1,271 @@
+//! The batch sweep ([`super::sweep_batch`]) written out in AVX2 intrinsics, two batches at
+//! a time. Each lane field of a [`Batch`] is one 256-bit register. One batch is a chain of
+//! about eighty dependent operations (gather, friction row, normal row, scatter) and some two
+//! hundred instructions, so the out-of-order window holds little more than one: running two
+//! batches of a colour side by side (they share no movable body) lets their chains overlap.
+//! The compiler's own vectorisation of the portable loop does not survive that restructuring,
+//! hence the intrinsics. Every arithmetic operation is the portable loop's, in its order, on
+//! the same IEEE doubles (no fused multiply-add), and the measures are folded batch by batch,
+//! so the bits are the same.
+
+use core::arch::x86_64::__m256d;
+
+use pulp::x86::V3;
+
+use super::{Batch, LANES, LaneSweep, Vel};
+
+/// Velocity `i` as one register `(vx, vy, ω, pad)`.
+#[inline(always)]
+fn load(vel: &[Vel], i: u32) -> __m256d {
+    let v = &vel[i as usize];
+    pulp::cast(pulp::f64x4(v.vx, v.vy, v.w, v.pad))
+}
+
+/// Four velocities as rows `(vx, vy, ω, pad)` to three registers `(vx₀..₃)`, `(vy₀..₃)`,
+/// `(ω₀..₃)`.
+#[inline(always)]
+fn gather(simd: V3, vel: &[Vel], index: &[u32; LANES]) -> [__m256d; 3] {
+    let (r0, r1, r2, r3) = (
+        load(vel, index[0]),
+        load(vel, index[1]),
+        load(vel, index[2]),
+        load(vel, index[3]),
+    );
+    let avx = simd.avx;
+    // (vx₀ vx₁ ω₀ ω₁), (vy₀ vy₁ p₀ p₁), (vx₂ vx₃ ω₂ ω₃), (vy₂ vy₃ p₂ p₃)
+    let t0 = avx._mm256_unpacklo_pd(r0, r1);
+    let t1 = avx._mm256_unpackhi_pd(r0, r1);
+    let t2 = avx._mm256_unpacklo_pd(r2, r3);
+    let t3 = avx._mm256_unpackhi_pd(r2, r3);
+    [
+        avx._mm256_permute2f128_pd::<0x20>(t0, t2),
+        avx._mm256_permute2f128_pd::<0x20>(t1, t3),
+        avx._mm256_permute2f128_pd::<0x31>(t0, t2),
+    ]
+}
+
+/// [`gather`] reversed: three registers back to four rows, stored at `index` (the pad takes
+/// ω; nothing reads it).
+#[inline(always)]
+fn scatter(simd: V3, vel: &mut [Vel], index: &[u32; LANES], [vx, vy, w]: [__m256d; 3]) {
+    let avx = simd.avx;
+    // (vx₀ vy₀ vx₂ vy₂), (vx₁ vy₁ vx₃ vy₃), (ω₀ ω₀ ω₂ ω₂), (ω₁ ω₁ ω₃ ω₃)
+    let t0 = avx._mm256_unpacklo_pd(vx, vy);
+    let t1 = avx._mm256_unpackhi_pd(vx, vy);
+    let t2 = avx._mm256_unpacklo_pd(w, w);
+    let t3 = avx._mm256_unpackhi_pd(w, w);
+    let rows = [
+        avx._mm256_permute2f128_pd::<0x20>(t0, t2),
+        avx._mm256_permute2f128_pd::<0x20>(t1, t3),
+        avx._mm256_permute2f128_pd::<0x31>(t0, t2),
+        avx._mm256_permute2f128_pd::<0x31>(t1, t3),
+    ];
+    for (row, &i) in rows.into_iter().zip(index) {
+        let pulp::f64x4(vx, vy, w, pad) = pulp::cast(row);
+        vel[i as usize] = Vel { vx, vy, w, pad };
+    }
+}
+
+/// The lane registers of one batch in flight: the gathered velocities of its bodies and
+/// the changes of its two rows.
+struct InFlight {
+    a: [__m256d; 3],
+    b: [__m256d; 3],
+    dt: __m256d,
+    dn: __m256d,
+}
+
+/// The arithmetic of a batch, as closures over the instruction set.
+#[derive(Clone, Copy)]
+struct Ops {
+    simd: V3,
+    sign: __m256d,
+    zero: __m256d,
+}
+
+impl Ops {
+    #[inline(always)]
+    fn new(simd: V3) -> Self {
+        Self {
+            simd,
+            sign: simd.avx._mm256_set1_pd(-0.0),
+            zero: simd.avx._mm256_setzero_pd(),
+        }
+    }
+    #[inline(always)]
+    fn add(self, x: __m256d, y: __m256d) -> __m256d {
+        self.simd.avx._mm256_add_pd(x, y)
+    }
+    #[inline(always)]
+    fn sub(self, x: __m256d, y: __m256d) -> __m256d {
+        self.simd.avx._mm256_sub_pd(x, y)
+    }
+    #[inline(always)]
+    fn mul(self, x: __m256d, y: __m256d) -> __m256d {
+        self.simd.avx._mm256_mul_pd(x, y)
+    }
+    /// `x > y ? x : y` per lane (`maxpd` returns the second operand when either is NaN or
+    /// both are equal).
+    #[inline(always)]
+    fn gt(self, x: __m256d, y: __m256d) -> __m256d {
+        self.simd.avx._mm256_max_pd(x, y)
+    }
+    /// `x < y ? x : y` per lane.
+    #[inline(always)]
+    fn lt(self, x: __m256d, y: __m256d) -> __m256d {
+        self.simd.avx._mm256_min_pd(x, y)
+    }
+    #[inline(always)]
+    fn neg(self, x: __m256d) -> __m256d {
+        self.simd.avx._mm256_xor_pd(x, self.sign)
+    }
+    #[inline(always)]
+    fn abs(self, x: __m256d) -> __m256d {
+        self.simd.avx._mm256_andnot_pd(self.sign, x)
+    }
+}
+
+#[inline(always)]
+fn ld(x: &[f64; LANES]) -> __m256d {
+    pulp::cast(*x)
+}
+
+/// Gathers batch `b`'s body velocities.
+#[inline(always)]
+fn start(o: Ops, b: &Batch, vel: &[Vel]) -> InFlight {
+    InFlight {
+        a: gather(o.simd, vel, &b.a),
+        b: gather(o.simd, vel, &b.b),
+        dt: o.zero,
+        dn: o.zero,
+    }
+}
+
+/// `apply_normal`/`apply_tangent` of the change `d` along direction `(dx, dy)` with arms
+/// `(ra, rb)`.
+#[inline(always)]
+fn apply(
+    o: Ops,
+    b: &Batch,
+    s: &mut InFlight,
+    d: __m256d,
+    dir: (__m256d, __m256d),
+    arm: (__m256d, __m256d),
+) {
+    let (px, py) = (o.mul(d, dir.0), o.mul(d, dir.1));
+    let (ma, ia, mb, ib) = (ld(&b.ma), ld(&b.ia), ld(&b.mb), ld(&b.ib));
+    s.a[0] = o.sub(s.a[0], o.mul(ma, px));
+    s.a[1] = o.sub(s.a[1], o.mul(ma, py));
+    s.a[2] = o.sub(s.a[2], o.mul(ia, o.mul(d, arm.0)));
+    s.b[0] = o.add(s.b[0], o.mul(mb, px));
+    s.b[1] = o.add(s.b[1], o.mul(mb, py));
+    s.b[2] = o.add(s.b[2], o.mul(ib, o.mul(d, arm.1)));
+}
+
+/// The relative velocity `(vB − vA)·dir + ωB rb − ωA ra`, in the portable loop's order.
+#[inline(always)]
+fn relative(o: Ops, s: &InFlight, dir: (__m256d, __m256d), arm: (__m256d, __m256d)) -> __m256d {
+    o.sub(
+        o.add(
+            o.add(
+                o.mul(o.sub(s.b[0], s.a[0]), dir.0),
+                o.mul(o.sub(s.b[1], s.a[1]), dir.1),
+            ),
+            o.mul(s.b[2], arm.1),
+        ),
+        o.mul(s.a[2], arm.0),
+    )
+}
+
+/// Friction rows: `tangent_velocity`, `clamp_sym`, then `apply_tangent`.
+#[inline(always)]
+fn friction(o: Ops, b: &mut Batch, s: &mut InFlight) {
+    let (nx, ny) = (ld(&b.nx), ld(&b.ny));
+    let dir = (o.neg(ny), nx);
+    let arm = (ld(&b.rta), ld(&b.rtb));
+    let lt0 = ld(&b.lt);
+    let vt = relative(o, s, dir, arm);
+    let bound = o.mul(ld(&b.friction), ld(&b.ln));
+    let x = o.sub(lt0, o.mul(ld(&b.tangent_mass), vt));
+    // clamp_sym: `x < -bound ? -bound : x`, then `x > bound ? bound : x`.
+    let new = o.lt(bound, o.gt(o.neg(bound), x));
+    let d = o.sub(new, lt0);
+    b.lt = pulp::cast(new);
+    apply(o, b, s, d, dir, arm);
+    s.dt = d;
+}
+
+/// Normal rows: `normal_velocity`, `non_negative`, then `apply_normal`.
+#[inline(always)]
+fn normal(o: Ops, b: &mut Batch, s: &mut InFlight) {
+    let dir = (ld(&b.nx), ld(&b.ny));
+    let arm = (ld(&b.rna), ld(&b.rnb));
+    let ln0 = ld(&b.ln);
+    let vn = relative(o, s, dir, arm);
+    let new = o.gt(
+        o.zero,
+        o.sub(ln0, o.mul(ld(&b.normal_mass), o.sub(vn, ld(&b.bias)))),
+    );
+    let d = o.sub(new, ln0);
+    b.ln = pulp::cast(new);
+    apply(o, b, s, d, dir, arm);
+    s.dn = d;
+}
+
+/// Scatters the movable bodies back (immovable and padding lanes into the sink,
+/// [`Batch::wa`]) and folds the batch's measures into `lanes`, friction before normal.
+#[inline(always)]
+fn finish<const CONTACT: bool>(
+    o: Ops,
+    b: &Batch,
+    s: InFlight,
+    vel: &mut [Vel],
+    lanes: &mut LaneSweep,
+) {
+    scatter(o.simd, vel, &b.wa, s.a);
+    scatter(o.simd, vel, &b.wb, s.b);
+    let (mut max, mut sum_sq) = (ld(&lanes.max), ld(&lanes.sum_sq));
+    for d in [s.dt, s.dn] {
+        max = o.gt(o.abs(d), max);
+        sum_sq = o.add(sum_sq, o.mul(d, d));
+    }
+    lanes.max = pulp::cast(max);
+    lanes.sum_sq = pulp::cast(sum_sq);
+    if CONTACT {
+        let t_pos = o.gt(s.dt, o.zero);
+        let c = o.add(o.mul(s.dn, s.dn), o.mul(t_pos, t_pos));
+        lanes.contact_sq = pulp::cast(o.gt(c, ld(&lanes.contact_sq)));
+    }
+}
+
+/// The batches of one colour in order, two at a time: the second's dependent chain runs
+/// beside the first's (they share no movable body; three or four at a time spill registers),
+/// the measures folded batch by batch.
+#[inline(always)]
+pub(crate) fn sweep_colour<const CONTACT: bool>(
+    simd: V3,
+    batches: &mut [Batch],
+    vel: &mut [Vel],
+    lanes: &mut LaneSweep,
+) {
+    let o = Ops::new(simd);
+    let mut pairs = batches.chunks_exact_mut(2);
+    for pair in &mut pairs {
+        let [b0, b1] = pair else {
+            unreachable!("chunks of two")
+        };
+        let (mut s0, mut s1) = (start(o, b0, vel), start(o, b1, vel));
+        friction(o, b0, &mut s0);
+        friction(o, b1, &mut s1);
+        normal(o, b0, &mut s0);
+        normal(o, b1, &mut s1);
+        finish::<CONTACT>(o, b0, s0, vel, lanes);
+        finish::<CONTACT>(o, b1, s1, vel, lanes);
+    }
+    for b in pairs.into_remainder() {
+        let mut s = start(o, b, vel);
+        friction(o, b, &mut s);
+        normal(o, b, &mut s);
+        finish::<CONTACT>(o, b, s, vel, lanes);
+    }
+}
