@@ -208,16 +208,12 @@ pub(crate) struct Segment {
     pub(crate) manifolds: std::ops::Range<usize>,
 }
 
-/// Velocity `(vx, vy, ω)` of one body, 32 bytes and aligned to them, so that one load reads
-/// it whole ([`avx2`]).
+/// Velocity `(vx, vy, ω)` of one body.
 #[derive(Debug, Clone, Copy, Default)]
-#[repr(C, align(32))]
 pub(crate) struct Vel {
     pub(crate) vx: Real,
     pub(crate) vy: Real,
     pub(crate) w: Real,
-    /// Unused (whatever the last store left); never read as a velocity.
-    pub(crate) pad: Real,
 }
 
 /// Projected Gauss-Seidel on sequential impulses (Box2D v2.4's `b2ContactSolver`).
@@ -275,7 +271,6 @@ impl PgsSolver {
             vx: b.linear_velocity.x,
             vy: b.linear_velocity.y,
             w: b.angular_velocity,
-            pad: 0.0,
         };
         self.vel.clear();
         if self.bodies.is_active() {
@@ -966,7 +961,6 @@ pub(crate) fn sweep_batch<const CONTACT: bool, V: Velocities + ?Sized>(
                 vx: avx[i],
                 vy: avy[i],
                 w: aw[i],
-                pad: 0.0,
             },
         );
         vel.set(
@@ -975,7 +969,6 @@ pub(crate) fn sweep_batch<const CONTACT: bool, V: Velocities + ?Sized>(
                 vx: bvx[i],
                 vy: bvy[i],
                 w: bw[i],
-                pad: 0.0,
             },
         );
     }

@@ -45,12 +45,7 @@ impl Velocities for Shared<'_> {
     #[inline(always)]
     fn get(&self, i: u32) -> Vel {
         let [vx, vy, w] = self.0[i as usize].load();
-        Vel {
-            vx,
-            vy,
-            w,
-            pad: 0.0,
-        }
+        Vel { vx, vy, w }
     }
 
     #[inline(always)]
@@ -155,12 +150,7 @@ pub(crate) fn solve_chunked(
     );
     for (v, shared) in s.vel.iter_mut().zip(&vel) {
         let [vx, vy, w] = shared.load();
-        *v = Vel {
-            vx,
-            vy,
-            w,
-            pad: 0.0,
-        };
+        *v = Vel { vx, vy, w };
     }
     // The iterations' residuals into the report, and the verdict, as the judge saw them.
     let mut last = (0, Verdict::Continue);

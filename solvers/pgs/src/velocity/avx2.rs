@@ -14,55 +14,35 @@ use pulp::x86::V3;
 
 use super::{Batch, LANES, LaneSweep, Vel};
 
-/// Velocity `i` as one register `(vx, vy, ω, pad)`.
+/// The velocities of four bodies as three registers `(vx₀..₃)`, `(vy₀..₃)`, `(ω₀..₃)`.
 #[inline(always)]
-fn load(vel: &[Vel], i: u32) -> __m256d {
-    let v = &vel[i as usize];
-    pulp::cast(pulp::f64x4(v.vx, v.vy, v.w, v.pad))
-}
-
-/// Four velocities as rows `(vx, vy, ω, pad)` to three registers `(vx₀..₃)`, `(vy₀..₃)`,
-/// `(ω₀..₃)`.
-#[inline(always)]
-fn gather(simd: V3, vel: &[Vel], index: &[u32; LANES]) -> [__m256d; 3] {
-    let (r0, r1, r2, r3) = (
-        load(vel, index[0]),
-        load(vel, index[1]),
-        load(vel, index[2]),
-        load(vel, index[3]),
+fn gather(vel: &[Vel], index: &[u32; LANES]) -> [__m256d; 3] {
+    // No closures in here: they are compiled outside the AVX2 context, and the intrinsics
+    // in them become calls.
+    let (v0, v1, v2, v3) = (
+        vel[index[0] as usize],
+        vel[index[1] as usize],
+        vel[index[2] as usize],
+        vel[index[3] as usize],
     );
-    let avx = simd.avx;
-    // (vx₀ vx₁ ω₀ ω₁), (vy₀ vy₁ p₀ p₁), (vx₂ vx₃ ω₂ ω₃), (vy₂ vy₃ p₂ p₃)
-    let t0 = avx._mm256_unpacklo_pd(r0, r1);
-    let t1 = avx._mm256_unpackhi_pd(r0, r1);
-    let t2 = avx._mm256_unpacklo_pd(r2, r3);
-    let t3 = avx._mm256_unpackhi_pd(r2, r3);
     [
-        avx._mm256_permute2f128_pd::<0x20>(t0, t2),
-        avx._mm256_permute2f128_pd::<0x20>(t1, t3),
-        avx._mm256_permute2f128_pd::<0x31>(t0, t2),
+        pulp::cast(pulp::f64x4(v0.vx, v1.vx, v2.vx, v3.vx)),
+        pulp::cast(pulp::f64x4(v0.vy, v1.vy, v2.vy, v3.vy)),
+        pulp::cast(pulp::f64x4(v0.w, v1.w, v2.w, v3.w)),
     ]
 }
 
-/// [`gather`] reversed: three registers back to four rows, stored at `index` (the pad takes
-/// ω; nothing reads it).
+/// [`gather`] reversed: three registers back to the four bodies at `index`, in lane order.
 #[inline(always)]
-fn scatter(simd: V3, vel: &mut [Vel], index: &[u32; LANES], [vx, vy, w]: [__m256d; 3]) {
-    let avx = simd.avx;
-    // (vx₀ vy₀ vx₂ vy₂), (vx₁ vy₁ vx₃ vy₃), (ω₀ ω₀ ω₂ ω₂), (ω₁ ω₁ ω₃ ω₃)
-    let t0 = avx._mm256_unpacklo_pd(vx, vy);
-    let t1 = avx._mm256_unpackhi_pd(vx, vy);
-    let t2 = avx._mm256_unpacklo_pd(w, w);
-    let t3 = avx._mm256_unpackhi_pd(w, w);
-    let rows = [
-        avx._mm256_permute2f128_pd::<0x20>(t0, t2),
-        avx._mm256_permute2f128_pd::<0x20>(t1, t3),
-        avx._mm256_permute2f128_pd::<0x31>(t0, t2),
-        avx._mm256_permute2f128_pd::<0x31>(t1, t3),
-    ];
-    for (row, &i) in rows.into_iter().zip(index) {
-        let pulp::f64x4(vx, vy, w, pad) = pulp::cast(row);
-        vel[i as usize] = Vel { vx, vy, w, pad };
+fn scatter(vel: &mut [Vel], index: &[u32; LANES], [vx, vy, w]: [__m256d; 3]) {
+    let (vx, vy, w): ([f64; LANES], [f64; LANES], [f64; LANES]) =
+        (pulp::cast(vx), pulp::cast(vy), pulp::cast(w));
+    for (lane, &i) in index.iter().enumerate() {
+        vel[i as usize] = Vel {
+            vx: vx[lane],
+            vy: vy[lane],
+            w: w[lane],
+        };
     }
 }
 
@@ -134,8 +114,8 @@ fn ld(x: &[f64; LANES]) -> __m256d {
 #[inline(always)]
 fn start(o: Ops, b: &Batch, vel: &[Vel]) -> InFlight {
     InFlight {
-        a: gather(o.simd, vel, &b.a),
-        b: gather(o.simd, vel, &b.b),
+        a: gather(vel, &b.a),
+        b: gather(vel, &b.b),
         dt: o.zero,
         dn: o.zero,
     }
@@ -222,8 +202,8 @@ fn finish<const CONTACT: bool>(
     vel: &mut [Vel],
     lanes: &mut LaneSweep,
 ) {
-    scatter(o.simd, vel, &b.wa, s.a);
-    scatter(o.simd, vel, &b.wb, s.b);
+    scatter(vel, &b.wa, s.a);
+    scatter(vel, &b.wb, s.b);
     let (mut max, mut sum_sq) = (ld(&lanes.max), ld(&lanes.sum_sq));
     for d in [s.dt, s.dn] {
         max = o.gt(o.abs(d), max);
@@ -267,5 +247,123 @@ pub(crate) fn sweep_colour<const CONTACT: bool>(
         friction(o, b, &mut s);
         normal(o, b, &mut s);
         finish::<CONTACT>(o, b, s, vel, lanes);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use deepcontact_core::rng::PortableRng;
+
+    use super::*;
+    use crate::velocity::{BatchKernel, Portable};
+
+    /// `n` random batches of one colour over `bodies` bodies (each movable body in at most
+    /// one lane; some lanes immovable or padding), with the odd special value a start or a
+    /// velocity can carry (a NaN, a negative zero, a zero friction bound).
+    fn colour(rng: &mut PortableRng, n: usize, bodies: u32) -> (Vec<Batch>, Vec<Vel>) {
+        let (dummy, sink) = (bodies, bodies + 1);
+        let mut vel: Vec<Vel> = (0..bodies)
+            .map(|_| Vel {
+                vx: rng.uniform_range(-2.0, 2.0),
+                vy: rng.uniform_range(-2.0, 2.0),
+                w: rng.uniform_range(-5.0, 5.0),
+            })
+            .collect();
+        vel.extend([Vel::default(); 2]);
+        let mut next = 0;
+        let mut batches = Vec::new();
+        for _ in 0..n {
+            let mut b = Batch {
+                a: [dummy; LANES],
+                b: [dummy; LANES],
+                wa: [sink; LANES],
+                wb: [sink; LANES],
+                row: [u32::MAX; LANES],
+                ..Batch::default()
+            };
+            for lane in 0..LANES {
+                if rng.uniform() < 0.1 {
+                    continue; // padding
+                }
+                let (a, bb) = (next, next + 1);
+                next += 2;
+                let a_moves = rng.uniform() < 0.8;
+                b.a[lane] = a;
+                b.b[lane] = bb;
+                b.wa[lane] = if a_moves { a } else { sink };
+                b.wb[lane] = bb;
+                b.row[lane] = lane as u32;
+                let angle = rng.uniform_range(0.0, std::f64::consts::TAU);
+                (b.nx[lane], b.ny[lane]) = (angle.cos(), angle.sin());
+                for f in [&mut b.rna, &mut b.rnb, &mut b.rta, &mut b.rtb] {
+                    f[lane] = rng.uniform_range(-0.5, 0.5);
+                }
+                b.normal_mass[lane] = rng.uniform_range(0.1, 2.0);
+                b.tangent_mass[lane] = rng.uniform_range(0.1, 2.0);
+                b.friction[lane] = if rng.uniform() < 0.1 { 0.0 } else { 0.6 };
+                b.bias[lane] = rng.uniform_range(-0.1, 0.1);
+                (b.ma[lane], b.ia[lane]) = if a_moves { (1.0, 2.0) } else { (0.0, 0.0) };
+                (b.mb[lane], b.ib[lane]) = (rng.uniform_range(0.5, 2.0), 3.0);
+                b.ln[lane] = match rng.next_u64() % 8 {
+                    0 => f64::NAN,
+                    1 => -0.0,
+                    _ => rng.uniform_range(0.0, 3.0),
+                };
+                b.lt[lane] = rng.uniform_range(-1.0, 1.0);
+            }
+            batches.push(b);
+        }
+        (batches, vel)
+    }
+
+    #[test]
+    fn avx2_pairs_are_bit_identical_to_the_portable_loop_on_random_colours() {
+        let Some(simd) = V3::try_new() else {
+            eprintln!("no AVX2 on this machine: nothing to compare");
+            return;
+        };
+        let bits = |x: &[f64]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        let mut rng = PortableRng::new(7);
+        // Odd and even counts: pairs, and a last batch alone.
+        for n in [1, 2, 3, 6, 7] {
+            for contact in [false, true] {
+                let (batches, vel) = colour(&mut rng, n, 8 * n as u32);
+                let run = |fast: bool| {
+                    let (mut batches, mut vel) = (batches.clone(), vel.clone());
+                    let mut lanes = LaneSweep::default();
+                    // Two sweeps, so the second starts from the first's impulses.
+                    for _ in 0..2 {
+                        match (fast, contact) {
+                            // The token proves AVX2: the intrinsics run (as calls) here too.
+                            (true, true) => {
+                                sweep_colour::<true>(simd, &mut batches, &mut vel, &mut lanes)
+                            }
+                            (true, false) => {
+                                sweep_colour::<false>(simd, &mut batches, &mut vel, &mut lanes)
+                            }
+                            (false, true) => {
+                                Portable.sweep::<true>(&mut batches, &mut vel, &mut lanes)
+                            }
+                            (false, false) => {
+                                Portable.sweep::<false>(&mut batches, &mut vel, &mut lanes)
+                            }
+                        }
+                    }
+                    let mut out = bits(&lanes.max);
+                    out.extend(bits(&lanes.sum_sq));
+                    out.extend(bits(&lanes.contact_sq));
+                    for b in &batches {
+                        out.extend(bits(&b.ln));
+                        out.extend(bits(&b.lt));
+                    }
+                    // The sink is never read; everything else must match.
+                    for v in &vel[..vel.len() - 1] {
+                        out.extend(bits(&[v.vx, v.vy, v.w]));
+                    }
+                    out
+                };
+                assert_eq!(run(true), run(false), "{n} batches, contact {contact}");
+            }
+        }
     }
 }
