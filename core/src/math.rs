@@ -53,6 +53,13 @@ pub fn cross_sv(w: Real, r: &Vector) -> Vector {
 #[inline(always)]
 pub fn rotate(v: &Vector, angle: Real) -> Vector {
     let (s, c) = angle.sin_cos();
+    rotate_sin_cos(v, s, c)
+}
+
+/// Rotates `v` by the angle whose sine and cosine are `s` and `c` (what [`rotate`] does once
+/// it has them).
+#[inline(always)]
+pub fn rotate_sin_cos(v: &Vector, s: Real, c: Real) -> Vector {
     Vector::new(c * v.x - s * v.y, s * v.x + c * v.y)
 }
 

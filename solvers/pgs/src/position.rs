@@ -1,6 +1,6 @@
 //! The position pass: Box2D v2.4's non-linear Gauss-Seidel on the contact separations.
 
-use deepcontact_core::math::{Pose, Real, Vector, cross, rotate};
+use deepcontact_core::math::{Pose, Real, Vector, cross, rotate, rotate_sin_cos};
 use deepcontact_core::{
     CircleContact, ContactProblem, CoreError, PositionReport, PositionSettings, PositionSolver,
     ProblemBody,
@@ -59,6 +59,8 @@ pub struct PgsPositionSolver {
     renumbered: Vec<Pose>,
     /// The domain plan's parts ([`PgsPositionSettings::domains`]).
     domains: crate::position_domains::PositionDomains,
+    /// The plain plan's rotation of each body, kept across the pass's iterations.
+    rotations: Vec<Rotation>,
 }
 
 impl PgsPositionSolver {
@@ -91,6 +93,63 @@ pub(crate) trait Poses {
     fn get(&self, i: usize) -> Pose;
     /// Sets the pose of body `i`.
     fn set(&mut self, i: usize, pose: Pose);
+    /// `v` rotated by `angle`, an angle of body `i`'s ([`rotate`]; a pose store may keep the
+    /// last sine and cosine of each body, [`CachedRotations`]).
+    #[inline(always)]
+    fn rotate(&mut self, _i: usize, v: &Vector, angle: Real) -> Vector {
+        rotate(v, angle)
+    }
+}
+
+/// Per body, the angle (as bits) of the last rotation the pass computed for it, and its sine
+/// and cosine. A body's angle only changes when a correction moves it, and most points of a
+/// resting pile sit inside the slop (no correction), so a row often finds its bodies'
+/// rotations here instead of calling `sin_cos` again. Keyed by the exact bits of the angle,
+/// so the result is the same bits.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Rotation {
+    angle: u64,
+    sin: Real,
+    cos: Real,
+}
+
+impl Default for Rotation {
+    /// The rotation by `+0.0`: `sin_cos(0) = (0, 1)` exactly.
+    fn default() -> Self {
+        Self {
+            angle: 0.0_f64.to_bits(),
+            sin: 0.0,
+            cos: 1.0,
+        }
+    }
+}
+
+/// Poses with a [`Rotation`] cache per body.
+pub(crate) struct CachedRotations<'a> {
+    pub(crate) poses: &'a mut [Pose],
+    pub(crate) rotations: &'a mut [Rotation],
+}
+
+impl Poses for CachedRotations<'_> {
+    #[inline(always)]
+    fn get(&self, i: usize) -> Pose {
+        self.poses[i]
+    }
+
+    #[inline(always)]
+    fn set(&mut self, i: usize, pose: Pose) {
+        self.poses[i] = pose;
+    }
+
+    #[inline(always)]
+    fn rotate(&mut self, i: usize, v: &Vector, angle: Real) -> Vector {
+        let r = &mut self.rotations[i];
+        if r.angle != angle.to_bits() {
+            (r.sin, r.cos) = angle.sin_cos();
+            r.angle = angle.to_bits();
+        }
+        rotate_sin_cos(v, r.sin, r.cos)
+    }
 }
 
 impl Poses for [Pose] {
@@ -202,8 +261,8 @@ pub(crate) fn correct_point<P: Poses + ?Sized>(
         row.mb == 0.0 && row.ib == 0.0,
     );
     let (ra, rb, normal, sep) = if !row.remeasure {
-        let ra = rotate(&row.ra0, ta - row.ta0);
-        let rb = rotate(&row.rb0, tb - row.tb0);
+        let ra = poses.rotate(ia, &row.ra0, ta - row.ta0);
+        let rb = poses.rotate(ib, &row.rb0, tb - row.tb0);
         // s = s0 + n · [(cB + rB) − (cA + rA) − ((cB0 + rB0) − (cA0 + rA0))]
         let d = (cb + rb - ca - ra) - (row.cb0 + row.rb0 - row.ca0 - row.ra0);
         (ra, rb, row.normal, row.separation + row.normal.dot(&d))
@@ -383,10 +442,16 @@ impl PositionSolver for PgsPositionSolver {
             self.rows.clear();
             self.rows
                 .extend((0..problem.points.len()).map(|k| PosRow::new(problem, k, settings)));
+            self.rotations.clear();
+            self.rotations.resize(poses.len(), Rotation::default());
+            let mut cached = CachedRotations {
+                poses: &mut *poses,
+                rotations: &mut self.rotations,
+            };
             for it in 0..settings.max_iterations {
                 let mut m = PassMeasures::default();
                 for row in &self.rows {
-                    m.merge(&correct_point(row, settings, poses, false));
+                    m.merge(&correct_point(row, settings, &mut cached, false));
                 }
                 if m.judge(it, settings, &mut report) {
                     break;
@@ -457,6 +522,30 @@ mod tests {
             .flat_map(|p| [p.position.x, p.position.y, p.angle].map(f64::to_bits))
             .collect();
         (bits, report.iterations, report.min_separation.to_bits())
+    }
+
+    #[test]
+    fn cached_rotations_give_the_bits_of_a_fresh_sin_cos() {
+        // Repeated angles (hits), changed ones, both zeros (different bits: a miss) and a
+        // NaN, on two bodies.
+        let angles = [0.0, 0.0, -0.0, 0.3, 0.3, 1e-9, -2.5, -2.5, Real::NAN, 0.0];
+        let v = Vector::new(0.7, -0.2);
+        let mut poses = vec![Pose::new(Vector::zeros(), 0.0); 2];
+        let mut rotations = vec![Rotation::default(); 2];
+        let mut cached = CachedRotations {
+            poses: &mut poses,
+            rotations: &mut rotations,
+        };
+        for (k, &angle) in angles.iter().enumerate() {
+            let body = k % 2;
+            let got = cached.rotate(body, &v, angle);
+            let want = rotate(&v, angle);
+            assert_eq!(
+                (got.x.to_bits(), got.y.to_bits()),
+                (want.x.to_bits(), want.y.to_bits()),
+                "angle {angle} on body {body}"
+            );
+        }
     }
 
     #[test]
