@@ -22,8 +22,11 @@
 //!
 //! **Instruction set.** The velocity sweep loop is compiled twice, for the x86-64 baseline and
 //! for AVX2 + FMA, and the solver picks one at run time (`pulp::Arch`, detected when the solver
-//! is made); a [`LANES`]-wide batch field then fills one 256-bit register. The arithmetic is
-//! the same operations in the same order, so the results are bit-identical either way.
+//! is made). With AVX2 a [`LANES`]-wide batch field is one 256-bit register and the batches
+//! run through a kernel written in its intrinsics, two batches of a colour side by side (their
+//! dependent chains overlap); elsewhere the portable loop runs, one batch at a time. The
+//! arithmetic is the same operations in the same order, so the results are bit-identical
+//! either way.
 #![warn(missing_docs)]
 
 mod domain_sweep;
