@@ -108,6 +108,40 @@ impl SolverSettings {
     }
 }
 
+/// One island of a [`VelocitySolver::solve_many`] call: what [`VelocitySolver::solve`] takes,
+/// and where its outcome goes.
+#[derive(Debug)]
+pub struct IslandSolve<'a> {
+    /// The island's contact problem.
+    pub problem: &'a ContactProblem,
+    /// In: the start impulses, one per point (N·s); out: the solved impulses.
+    pub impulses: &'a mut [Impulse],
+    /// Out: the body velocities after the solve, one per body of `problem` (m/s, rad/s).
+    pub velocities: &'a mut [Velocity],
+    /// Out: the solve's report.
+    pub report: &'a mut SolveReport,
+    /// Out: the solve's outcome (`Ok(())` before the solve).
+    pub result: Result<(), CoreError>,
+}
+
+impl<'a> IslandSolve<'a> {
+    /// An island to solve from the start in `impulses`.
+    pub fn new(
+        problem: &'a ContactProblem,
+        impulses: &'a mut [Impulse],
+        velocities: &'a mut [Velocity],
+        report: &'a mut SolveReport,
+    ) -> Self {
+        Self {
+            problem,
+            impulses,
+            velocities,
+            report,
+            result: Ok(()),
+        }
+    }
+}
+
 /// Checks the buffers handed to [`VelocitySolver::solve`]: one impulse per point and one
 /// velocity per body of `problem`. Solvers call it before touching the buffers.
 pub fn check_solve_buffers(
@@ -172,6 +206,48 @@ pub trait VelocitySolver: Send {
         report: &mut SolveReport,
     ) -> Result<(), CoreError>;
 
+    /// Solves independent islands, each to the bits [`Self::solve`] gives it alone (its
+    /// outcome in [`IslandSolve::result`]), in any order or interleaving; the default solves
+    /// them one after another. The world's step hands its islands over here. A solver may
+    /// sweep small islands side by side, so that their short dependent chains overlap on the
+    /// core; their reports then share out the time they took together
+    /// ([`SolveReport::seconds`]).
+    ///
+    /// ```
+    /// use deepcontact_core::{ContactProblem, IslandSolve, SolveReport, SolverSettings};
+    /// use deepcontact_core::{Impulse, Velocity, VelocitySolver};
+    ///
+    /// fn solve_all(solver: &mut dyn VelocitySolver, problems: &[ContactProblem]) {
+    ///     let mut impulses: Vec<Vec<Impulse>> =
+    ///         problems.iter().map(|p| vec![Impulse::default(); p.len()]).collect();
+    ///     let mut velocities: Vec<Vec<Velocity>> = problems
+    ///         .iter()
+    ///         .map(|p| vec![Velocity::default(); p.bodies.len()])
+    ///         .collect();
+    ///     let mut reports = vec![SolveReport::default(); problems.len()];
+    ///     let mut islands: Vec<IslandSolve> = problems
+    ///         .iter()
+    ///         .zip(&mut impulses)
+    ///         .zip(&mut velocities)
+    ///         .zip(&mut reports)
+    ///         .map(|(((p, i), v), r)| IslandSolve::new(p, i, v, r))
+    ///         .collect();
+    ///     solver.solve_many(&SolverSettings::default(), &mut islands);
+    ///     assert!(islands.iter().all(|island| island.result.is_ok()));
+    /// }
+    /// ```
+    fn solve_many(&mut self, settings: &SolverSettings, islands: &mut [IslandSolve<'_>]) {
+        for island in islands {
+            island.result = self.solve(
+                island.problem,
+                settings,
+                island.impulses,
+                island.velocities,
+                island.report,
+            );
+        }
+    }
+
     /// A solver with the same settings for another thread, which must solve every problem
     /// to the same bits as this one (default `None`: islands are solved one after another).
     /// The world asks for forks when [`crate::WorldSettings::island_threads`] > 1.
@@ -183,6 +259,9 @@ pub trait VelocitySolver: Send {
 impl<S: VelocitySolver + ?Sized> VelocitySolver for Box<S> {
     fn name(&self) -> &str {
         (**self).name()
+    }
+    fn solve_many(&mut self, settings: &SolverSettings, islands: &mut [IslandSolve<'_>]) {
+        (**self).solve_many(settings, islands);
     }
     fn solve(
         &mut self,

@@ -574,8 +574,30 @@ impl World {
             Vec::new()
         };
         if forks.len() < 2 {
-            for (problem, w) in s.problems.iter().zip(&mut s.islands) {
-                solve(solver, problem, w);
+            // All islands in one call: the solver may sweep small ones side by side.
+            let mut islands: Vec<crate::IslandSolve<'_>> = s
+                .problems
+                .iter()
+                .zip(&mut s.islands)
+                .map(|(problem, w)| {
+                    w.impulses.clear();
+                    w.impulses.extend_from_slice(&w.warm);
+                    w.velocities.clear();
+                    w.velocities
+                        .resize(problem.bodies.len(), Velocity::default());
+                    crate::IslandSolve::new(
+                        problem,
+                        &mut w.impulses,
+                        &mut w.velocities,
+                        &mut w.report,
+                    )
+                })
+                .collect();
+            solver.solve_many(settings, &mut islands);
+            let errors: Vec<Option<CoreError>> =
+                islands.into_iter().map(|i| i.result.err()).collect();
+            for (w, error) in s.islands.iter_mut().zip(errors) {
+                w.error = error;
             }
             return;
         }

@@ -31,7 +31,8 @@ pub struct Totals {
 }
 
 impl Totals {
-    fn add(&mut self, r: &StepReport, fixed: Option<u32>, wall: f64) {
+    /// Adds one step's report and wall time.
+    pub fn add(&mut self, r: &StepReport, fixed: Option<u32>, wall: f64) {
         self.steps += 1;
         self.contacts += r.contacts as u64;
         if let Some(n) = fixed {
@@ -65,6 +66,37 @@ impl Totals {
     }
 }
 
+/// Our solvers stepping a world one step at a time, with the totals of the steps taken.
+#[derive(Default)]
+pub struct Stepper {
+    solver: PgsSolver,
+    position: PgsPositionSolver,
+    /// The fixed iteration count, if there is one.
+    pub fixed: Option<u32>,
+    /// The totals so far.
+    pub totals: Totals,
+}
+
+impl Stepper {
+    /// A stepper with fresh solvers; `fixed` as in [`run`].
+    pub fn new(fixed: Option<u32>) -> Self {
+        Self {
+            fixed,
+            ..Self::default()
+        }
+    }
+
+    /// One step of `world`, timed.
+    pub fn step(&mut self, world: &mut World) -> Result<(), String> {
+        let t0 = Instant::now();
+        let r = world
+            .step(&mut CarriedWarmStart, &mut self.solver, &mut self.position)
+            .map_err(|e| e.to_string())?;
+        self.totals.add(&r, self.fixed, t0.elapsed().as_secs_f64());
+        Ok(())
+    }
+}
+
 /// Steps `world` under `settings`, `fixed` being the fixed iteration count if there is one.
 pub fn run(
     world: &mut World,
@@ -73,16 +105,11 @@ pub fn run(
     fixed: Option<u32>,
 ) -> Result<Totals, String> {
     world.set_settings(settings).map_err(|e| e.to_string())?;
-    let (mut solver, mut position) = (PgsSolver::default(), PgsPositionSolver::default());
-    let mut t = Totals::default();
+    let mut stepper = Stepper::new(fixed);
     for _ in 0..steps {
-        let t0 = Instant::now();
-        let r = world
-            .step(&mut CarriedWarmStart, &mut solver, &mut position)
-            .map_err(|e| e.to_string())?;
-        t.add(&r, fixed, t0.elapsed().as_secs_f64());
+        stepper.step(world)?;
     }
-    Ok(t)
+    Ok(stepper.totals)
 }
 
 /// Our pile of `scene` settled for `steps` steps (builtin, PGS, thesis rule with the velocity

@@ -1,6 +1,13 @@
 //! The peer comparison: ns per solver contact point per pass of our PGS velocity solve beside
 //! rapier2d's velocity resolution in each [`RapierConfig`], over a whole run from the initial
-//! state and on the settled pile, measured in the same process one after the other.
+//! state and on the settled pile, measured in the same process. The engines take their steps
+//! in turn, [`BLOCK`] steps at a time (ours, then each rapier2d configuration; on the settled
+//! pile ours with the like-with-like configuration, the other two after), so that the machine
+//! changing speed during a run touches both sides of a ratio alike, while each engine still
+//! finds its own data in the caches for all but the first step of a block.
+
+/// Steps an engine takes before the next one takes its turn.
+pub const BLOCK: u64 = 25;
 
 use std::time::Instant;
 
@@ -55,61 +62,95 @@ fn ours_settings(passes: u32) -> WorldSettings {
     }
 }
 
-/// Our velocity solve over `steps` steps of `world` at `passes` iterations.
-fn ours_cost(world: &mut World, passes: u32, steps: u64) -> Result<PassCost, String> {
-    let t = ours::run(world, ours_settings(passes), steps, Some(passes))?;
-    Ok(PassCost {
+/// Our velocity solve from the totals of the steps taken.
+fn ours_cost(t: &ours::Totals) -> PassCost {
+    PassCost {
         ns: t.ns_per_point_iteration(),
         points: t.mean_contacts(),
         step_ms: t.ms(t.wall),
-    })
+    }
 }
 
-/// rapier2d's velocity resolution over `steps` steps in its current configuration.
-fn rapier_cost(peer: &mut RapierPile, steps: u64) -> PassCost {
-    let (mut solve, mut point_passes, mut points, mut wall) = (0.0, 0.0, 0.0, 0.0);
-    for _ in 0..steps {
+/// rapier2d's velocity resolution, summed step by step.
+#[derive(Default)]
+struct RapierTotals {
+    steps: u64,
+    solve: f64,
+    point_passes: f64,
+    points: f64,
+    wall: f64,
+}
+
+impl RapierTotals {
+    /// One step of `peer`, timed.
+    fn step(&mut self, peer: &mut RapierPile) {
         let t0 = Instant::now();
         peer.step();
-        wall += t0.elapsed().as_secs_f64();
-        solve += peer.solver_seconds();
-        points += peer.contacts() as f64;
-        point_passes += (peer.contacts() * peer.passes()) as f64;
+        self.wall += t0.elapsed().as_secs_f64();
+        self.steps += 1;
+        self.solve += peer.solver_seconds();
+        self.points += peer.contacts() as f64;
+        self.point_passes += (peer.contacts() * peer.passes()) as f64;
     }
-    PassCost {
-        ns: solve / point_passes.max(1.0) * 1e9,
-        points: points / steps.max(1) as f64,
-        step_ms: wall / steps.max(1) as f64 * 1e3,
+
+    fn cost(&self) -> PassCost {
+        PassCost {
+            ns: self.solve / self.point_passes.max(1.0) * 1e9,
+            points: self.points / self.steps.max(1) as f64,
+            step_ms: self.wall / self.steps.max(1) as f64 * 1e3,
+        }
     }
 }
 
-/// Every engine from the initial state of `scene` (`n` bodies)'s initial state for `steps` steps at `passes` passes.
+/// Ours stepping `world` at `passes` passes.
+fn our_stepper(world: &mut World, passes: u32) -> Result<ours::Stepper, String> {
+    world
+        .set_settings(ours_settings(passes))
+        .map_err(|e| e.to_string())?;
+    Ok(ours::Stepper::new(Some(passes)))
+}
+
+/// Every engine from the initial state of `scene` (`n` bodies) for `steps` steps at `passes`
+/// passes, in turns of [`BLOCK`] steps: ours, then each rapier2d configuration.
 pub fn whole_run(n: usize, scene: &Scene, passes: u32, steps: u64) -> Result<PeerRow, String> {
     let mut world = scene
         .build(ours_settings(passes))
         .map_err(|e| e.to_string())?;
-    let ours = ours_cost(&mut world, passes, steps)?;
-    let rapier = configs(passes)
+    let mut ours = our_stepper(&mut world, passes)?;
+    let mut peers: Vec<(RapierConfig, RapierPile, RapierTotals)> = configs(passes)
         .into_iter()
         .map(|config| {
             (
                 config,
-                rapier_cost(&mut RapierPile::new(scene, config), steps),
+                RapierPile::new(scene, config),
+                RapierTotals::default(),
             )
         })
         .collect();
+    for first in (0..steps).step_by(BLOCK as usize) {
+        let block = BLOCK.min(steps - first);
+        for _ in 0..block {
+            ours.step(&mut world)?;
+        }
+        for (_, pile, totals) in &mut peers {
+            for _ in 0..block {
+                totals.step(pile);
+            }
+        }
+    }
     Ok(PeerRow {
         bodies: n,
         pile: "whole run",
         steps,
-        ours,
-        rapier,
+        ours: ours_cost(&ours.totals),
+        rapier: peers.iter().map(|(c, _, t)| (*c, t.cost())).collect(),
     })
 }
 
-/// Ours continuing from the settled `world`, then rapier2d settled for `settle` steps (in its
-/// substep configuration at `settle_iterations`) and measured in each configuration in turn,
-/// `steps` steps each.
+/// Ours continuing from the settled `world` beside rapier2d settled for `settle` steps (in its
+/// substep configuration at `settle_iterations`): `steps` steps of ours and of rapier2d in the
+/// like-with-like configuration in turns of [`BLOCK`] steps, then `steps` steps of each other
+/// configuration.
 pub fn settled(
     n: usize,
     scene: &Scene,
@@ -119,7 +160,6 @@ pub fn settled(
     passes: u32,
     steps: u64,
 ) -> Result<PeerRow, String> {
-    let ours = ours_cost(world, passes, steps)?;
     let mut peer = RapierPile::new(scene, RapierConfig::Substeps(settle_iterations as usize));
     for _ in 0..settle {
         peer.step();
@@ -129,13 +169,26 @@ pub fn settled(
         world.kinetic_energy(),
         peer.kinetic_energy()
     );
-    let rapier = configs(passes)
-        .into_iter()
-        .map(|config| {
-            peer.set_config(config);
-            (config, rapier_cost(&mut peer, steps))
-        })
-        .collect();
+    // Ours beside the like-with-like configuration, step after step; the others after.
+    let mut ours = our_stepper(world, passes)?;
+    let mut rapier = Vec::new();
+    for (k, config) in configs(passes).into_iter().enumerate() {
+        peer.set_config(config);
+        let mut totals = RapierTotals::default();
+        for first in (0..steps).step_by(BLOCK as usize) {
+            let block = BLOCK.min(steps - first);
+            for _ in 0..block {
+                if k == 0 {
+                    ours.step(world)?;
+                }
+            }
+            for _ in 0..block {
+                totals.step(&mut peer);
+            }
+        }
+        rapier.push((config, totals.cost()));
+    }
+    let ours = ours_cost(&ours.totals);
     Ok(PeerRow {
         bodies: n,
         pile: "settled",

@@ -39,6 +39,7 @@ mod sync;
 mod velocity;
 mod velocity_chunked;
 mod velocity_domains;
+mod velocity_many;
 mod z_order;
 
 pub use partition::MAX_DOMAINS;

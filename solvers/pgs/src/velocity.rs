@@ -8,7 +8,8 @@ use std::time::Instant;
 
 use deepcontact_core::math::{Real, Vector, Velocity, cross};
 use deepcontact_core::{
-    ContactProblem, CoreError, Impulse, ResidualNorm, SolveReport, SolverSettings, VelocitySolver,
+    ContactProblem, CoreError, Impulse, IslandSolve, ResidualNorm, SolveReport, SolverSettings,
+    VelocitySolver,
 };
 
 use crate::PgsError;
@@ -228,18 +229,21 @@ pub struct PgsSolver {
     body_colours: Vec<u64>,
     /// Colour of each manifold, and the scratch copy used to reorder.
     colours: Vec<u8>,
-    scratch: Vec<Manifold>,
+    pub(crate) scratch: Vec<Manifold>,
     /// Batches of single-point manifolds and the sweep plan (empty: one at a time).
-    batches: Vec<Batch>,
-    segments: Vec<Segment>,
+    pub(crate) batches: Vec<Batch>,
+    pub(crate) segments: Vec<Segment>,
     /// For the chunked plan, the bodies of `vel` renumbered in Z-order of their positions (so
     /// that neighbours share cache lines); inactive: the problem's order.
     bodies: crate::z_order::Renumbering,
     /// The instruction set the sweep loops run in, detected once when the solver is made:
     /// AVX2 + FMA (x86-64-v3) where the CPU has them, else the baseline. Same bits either way.
-    arch: pulp::Arch,
+    pub(crate) arch: pulp::Arch,
     /// The domain plan's parts ([`PgsSettings::domains`]; empty otherwise).
     domains: crate::velocity_domains::Domains,
+    /// The second solver of a pair of small islands ([`crate::velocity_many`]), made at the
+    /// first pair.
+    pub(crate) partner: Option<Box<PgsSolver>>,
 }
 
 impl PgsSolver {
@@ -350,7 +354,7 @@ impl PgsSolver {
 
     /// Whether an island of `points` contact points is swept in the chunked plan of
     /// [`crate::velocity_chunked`] (coloured, laned, and large enough).
-    fn plans_chunked(&self, points: usize) -> bool {
+    pub(crate) fn plans_chunked(&self, points: usize) -> bool {
         self.settings.ordering == Ordering::Coloured
             && self.settings.lanes
             && points >= self.settings.parallel_min_points
@@ -727,6 +731,26 @@ pub(crate) trait BatchKernel: Copy {
     /// Sweeps the batches of one colour in order on `vel`, folding their measures into
     /// `lanes`.
     fn sweep<const CONTACT: bool>(self, b: &mut [Batch], vel: &mut [Vel], lanes: &mut LaneSweep);
+
+    /// Sweeps all the batches of two islands, each in order on its own velocities and into
+    /// its own measures (the portable loop: one island, then the other).
+    #[inline(always)]
+    fn sweep_two<const CONTACT: bool>(self, a: Island<'_>, b: Island<'_>) {
+        for batch in a.batches {
+            sweep_batch::<CONTACT, _>(batch, a.vel, a.lanes);
+        }
+        for batch in b.batches {
+            sweep_batch::<CONTACT, _>(batch, b.vel, b.lanes);
+        }
+    }
+}
+
+/// One island's batches (all of them, colour after colour), velocities and measures, for
+/// [`BatchKernel::sweep_two`].
+pub(crate) struct Island<'a> {
+    pub(crate) batches: &'a mut [Batch],
+    pub(crate) vel: &'a mut [Vel],
+    pub(crate) lanes: &'a mut LaneSweep,
 }
 
 /// [`BatchKernel`] of the portable loop.
@@ -747,6 +771,11 @@ impl BatchKernel for pulp::x86::V3 {
     #[inline(always)]
     fn sweep<const CONTACT: bool>(self, b: &mut [Batch], vel: &mut [Vel], lanes: &mut LaneSweep) {
         avx2::sweep_colour::<CONTACT>(self, b, vel, lanes);
+    }
+
+    #[inline(always)]
+    fn sweep_two<const CONTACT: bool>(self, a: Island<'_>, b: Island<'_>) {
+        avx2::sweep_two::<CONTACT>(self, a, b);
     }
 }
 
@@ -1110,6 +1139,123 @@ fn solve_block(
     (d1, d2)
 }
 
+impl PgsSolver {
+    /// Stages 1 and 2 of a solve: checks, prepare, warm start.
+    pub(crate) fn begin(
+        &mut self,
+        problem: &ContactProblem,
+        settings: &SolverSettings,
+        impulses: &[Impulse],
+        velocities: &[Velocity],
+        report: &mut SolveReport,
+    ) -> Result<(), CoreError> {
+        deepcontact_core::solver::begin_solve(
+            problem,
+            settings,
+            self.settings.validate,
+            impulses,
+            velocities,
+            report,
+        )?;
+        self.prepare(problem, impulses);
+        self.warm_start();
+        report
+            .residual_inf
+            .reserve(settings.max_iterations.min(4096) as usize);
+        report
+            .residual_l2
+            .reserve(settings.max_iterations.min(4096) as usize);
+        Ok(())
+    }
+
+    /// Stage 3 in the plan the island's size calls for: the iterations run and the verdict.
+    pub(crate) fn run(
+        &mut self,
+        points: usize,
+        settings: &SolverSettings,
+        report: &mut SolveReport,
+    ) -> (u32, Verdict) {
+        if self.plans_domains(points) {
+            self.domains.build(
+                self.settings.domains,
+                &self.manifolds,
+                &self.rows,
+                &self.vel,
+                self.settings,
+            );
+            let run = self.domains.solve(
+                crate::sync::effective_threads(self.settings.threads),
+                self.arch,
+                settings,
+                report,
+            );
+            self.domains.write_back(&mut self.rows, &mut self.vel);
+            run
+        } else if self.plans_chunked(points) && !self.segments.is_empty() {
+            crate::velocity_chunked::solve_chunked(
+                &mut crate::velocity_chunked::Sweepable {
+                    batches: &mut self.batches,
+                    segments: &self.segments,
+                    serial: &self.scratch,
+                    rows: &mut self.rows,
+                    vel: &mut self.vel,
+                },
+                crate::velocity_chunked::CHUNK,
+                crate::sync::effective_threads(self.settings.threads),
+                self.arch,
+                settings,
+                report,
+            )
+        } else {
+            self.solve_loop(settings, report)
+        }
+    }
+
+    /// Stage 4 of a solve that ran `it` iterations to `verdict`: the final projection, the
+    /// checks, and the impulses, velocities and natural residual stored.
+    pub(crate) fn end(
+        &mut self,
+        it: u32,
+        verdict: Verdict,
+        impulses: &mut [Impulse],
+        velocities: &mut [Velocity],
+        report: &mut SolveReport,
+    ) -> Result<(), CoreError> {
+        self.sync_rows();
+        if verdict == Verdict::Diverged {
+            return Err(self.diverged(it).into());
+        }
+        report.converged = verdict == Verdict::Converged;
+        report.iterations = it;
+        self.project_friction();
+        let finite = |v: &Vel| v.vx.is_finite() && v.vy.is_finite() && v.w.is_finite();
+        if !(self
+            .rows
+            .iter()
+            .all(|r| r.ln.is_finite() && r.lt.is_finite())
+            && self.vel.iter().all(finite))
+        {
+            return Err(self.diverged(it).into());
+        }
+        // Store impulses and velocities.
+        for (imp, r) in impulses.iter_mut().zip(&self.rows) {
+            *imp = Impulse::new(r.ln, r.lt);
+        }
+        let velocity = |v: &Vel| Velocity::new(Vector::new(v.vx, v.vy), v.w);
+        if !self.bodies.is_active() {
+            for (out, v) in velocities.iter_mut().zip(&self.vel) {
+                *out = velocity(v);
+            }
+        } else {
+            for (&b, v) in self.bodies.body_of.iter().zip(&self.vel) {
+                velocities[b as usize] = velocity(v);
+            }
+        }
+        report.natural_residual = self.natural_residual();
+        Ok(())
+    }
+}
+
 impl VelocitySolver for PgsSolver {
     fn name(&self) -> &str {
         "pgs"
@@ -1133,89 +1279,15 @@ impl VelocitySolver for PgsSolver {
         report: &mut SolveReport,
     ) -> Result<(), CoreError> {
         let t0 = Instant::now();
-        deepcontact_core::solver::begin_solve(
-            problem,
-            settings,
-            self.settings.validate,
-            impulses,
-            velocities,
-            report,
-        )?;
-        self.prepare(problem, impulses);
-        self.warm_start();
-        report
-            .residual_inf
-            .reserve(settings.max_iterations.min(4096) as usize);
-        report
-            .residual_l2
-            .reserve(settings.max_iterations.min(4096) as usize);
-        let (it, verdict) = if self.plans_domains(problem.points.len()) {
-            self.domains.build(
-                self.settings.domains,
-                &self.manifolds,
-                &self.rows,
-                &self.vel,
-                self.settings,
-            );
-            let run = self.domains.solve(
-                crate::sync::effective_threads(self.settings.threads),
-                self.arch,
-                settings,
-                report,
-            );
-            self.domains.write_back(&mut self.rows, &mut self.vel);
-            run
-        } else if self.plans_chunked(problem.points.len()) && !self.segments.is_empty() {
-            crate::velocity_chunked::solve_chunked(
-                &mut crate::velocity_chunked::Sweepable {
-                    batches: &mut self.batches,
-                    segments: &self.segments,
-                    serial: &self.scratch,
-                    rows: &mut self.rows,
-                    vel: &mut self.vel,
-                },
-                crate::velocity_chunked::CHUNK,
-                crate::sync::effective_threads(self.settings.threads),
-                self.arch,
-                settings,
-                report,
-            )
-        } else {
-            self.solve_loop(settings, report)
-        };
-        self.sync_rows();
-        if verdict == Verdict::Diverged {
-            return Err(self.diverged(it).into());
-        }
-        report.converged = verdict == Verdict::Converged;
-        report.iterations = it;
-        self.project_friction();
-        let finite = |v: &Vel| v.vx.is_finite() && v.vy.is_finite() && v.w.is_finite();
-        if !(self
-            .rows
-            .iter()
-            .all(|r| r.ln.is_finite() && r.lt.is_finite())
-            && self.vel.iter().all(finite))
-        {
-            return Err(self.diverged(it).into());
-        }
-        // Stage 4, store impulses and velocities.
-        for (imp, r) in impulses.iter_mut().zip(&self.rows) {
-            *imp = Impulse::new(r.ln, r.lt);
-        }
-        let velocity = |v: &Vel| Velocity::new(Vector::new(v.vx, v.vy), v.w);
-        if !self.bodies.is_active() {
-            for (out, v) in velocities.iter_mut().zip(&self.vel) {
-                *out = velocity(v);
-            }
-        } else {
-            for (&b, v) in self.bodies.body_of.iter().zip(&self.vel) {
-                velocities[b as usize] = velocity(v);
-            }
-        }
-        report.natural_residual = self.natural_residual();
+        self.begin(problem, settings, impulses, velocities, report)?;
+        let (it, verdict) = self.run(problem.points.len(), settings, report);
+        self.end(it, verdict, impulses, velocities, report)?;
         report.seconds = t0.elapsed().as_secs_f64();
         Ok(())
+    }
+
+    fn solve_many(&mut self, settings: &SolverSettings, islands: &mut [IslandSolve<'_>]) {
+        self.solve_islands(settings, islands);
     }
 }
 

@@ -12,7 +12,7 @@ use core::arch::x86_64::__m256d;
 
 use pulp::x86::V3;
 
-use super::{Batch, LANES, LaneSweep, Vel};
+use super::{Batch, Island, LANES, LaneSweep, Vel};
 
 /// The velocities of four bodies as three registers `(vx₀..₃)`, `(vy₀..₃)`, `(ω₀..₃)`.
 #[inline(always)]
@@ -247,6 +247,37 @@ pub(crate) fn sweep_colour<const CONTACT: bool>(
         friction(o, b, &mut s);
         normal(o, b, &mut s);
         finish::<CONTACT>(o, b, s, vel, lanes);
+    }
+}
+
+/// The batches of two islands side by side, the k-th of one beside the k-th of the other
+/// (the islands share nothing), each island's batches in their order and its measures folded
+/// batch by batch; the longer island's remaining batches one at a time.
+#[inline(always)]
+pub(crate) fn sweep_two<const CONTACT: bool>(simd: V3, a: Island<'_>, b: Island<'_>) {
+    let o = Ops::new(simd);
+    let n = a.batches.len().min(b.batches.len());
+    let (head_a, tail_a) = a.batches.split_at_mut(n);
+    let (head_b, tail_b) = b.batches.split_at_mut(n);
+    for (x, y) in head_a.iter_mut().zip(head_b.iter_mut()) {
+        let (mut sx, mut sy) = (start(o, x, a.vel), start(o, y, b.vel));
+        friction(o, x, &mut sx);
+        friction(o, y, &mut sy);
+        normal(o, x, &mut sx);
+        normal(o, y, &mut sy);
+        finish::<CONTACT>(o, x, sx, a.vel, a.lanes);
+        finish::<CONTACT>(o, y, sy, b.vel, b.lanes);
+    }
+    for (batches, vel, lanes) in [
+        (tail_a, &mut *a.vel, &mut *a.lanes),
+        (tail_b, b.vel, b.lanes),
+    ] {
+        for x in batches {
+            let mut s = start(o, x, vel);
+            friction(o, x, &mut s);
+            normal(o, x, &mut s);
+            finish::<CONTACT>(o, x, s, vel, lanes);
+        }
     }
 }
 

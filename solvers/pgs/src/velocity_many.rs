@@ -1,0 +1,359 @@
+//! Small islands solved two at a time ([`VelocitySolver::solve_many`]).
+//!
+//! A small island's sweep is a short chain of dependent operations repeated every iteration
+//! on the same few bodies, so the core idles on its latency. Two small islands share nothing:
+//! their batches run side by side ([`BatchKernel::sweep_two`]: with AVX2, the k-th batch of
+//! one beside the k-th of the other), so that the chains overlap. Each island keeps its own
+//! buffers (this solver's and its partner's), its own stop rule and iteration count, and its
+//! measures folded in its own order: each ends with the bits it would have alone.
+//!
+//! [`VelocitySolver::solve_many`]: deepcontact_core::VelocitySolver::solve_many
+
+use std::time::Instant;
+
+use deepcontact_core::{IslandSolve, ResidualNorm, SolveReport, SolverSettings, VelocitySolver};
+
+use crate::velocity::{
+    BatchKernel, Island, KernelOp, LaneSweep, PgsSolver, Sweep, Verdict, dispatch, judge,
+};
+
+/// Islands of at most this many contact points are paired: below it the per-iteration chain,
+/// not the work, sets a sweep's time (a one-point island costs 40–50 ns per pass, an island of
+/// 32 points or more ≈ 7.5 ns a point, as the largest do).
+pub(crate) const SMALL_POINTS: usize = 32;
+
+impl PgsSolver {
+    /// `solve_many` for PGS: islands of up to [`SMALL_POINTS`] points are solved in pairs
+    /// (in the order they come), the others alone, each to the bits of its own solve.
+    pub(crate) fn solve_islands(
+        &mut self,
+        settings: &SolverSettings,
+        islands: &mut [IslandSolve<'_>],
+    ) {
+        let mut waiting: Option<usize> = None;
+        for k in 0..islands.len() {
+            if islands[k].problem.points.len() > SMALL_POINTS {
+                let i = &mut islands[k];
+                i.result = self.solve(i.problem, settings, i.impulses, i.velocities, i.report);
+                continue;
+            }
+            match waiting.take() {
+                None => waiting = Some(k),
+                Some(j) => {
+                    let (first, rest) = islands.split_at_mut(k);
+                    self.solve_pair(settings, &mut first[j], &mut rest[0]);
+                }
+            }
+        }
+        if let Some(j) = waiting {
+            let i = &mut islands[j];
+            i.result = self.solve(i.problem, settings, i.impulses, i.velocities, i.report);
+        }
+    }
+
+    /// Whether this solver's prepared island is swept as batches only, in the plain plan.
+    fn batches_only(&self, points: usize) -> bool {
+        !self.plans_chunked(points) && !self.segments.is_empty() && self.scratch.is_empty()
+    }
+
+    /// Solves `a` on this solver and `b` on its partner: side by side when both are swept as
+    /// batches only, else one after the other. The pair's time is shared out between the two
+    /// reports in proportion to their point-iterations.
+    fn solve_pair(
+        &mut self,
+        settings: &SolverSettings,
+        a: &mut IslandSolve<'_>,
+        b: &mut IslandSolve<'_>,
+    ) {
+        let t0 = Instant::now();
+        let mut partner = self
+            .partner
+            .take()
+            .unwrap_or_else(|| Box::new(PgsSolver::with_settings(self.settings)));
+        partner.arch = self.arch;
+        let began = (
+            self.begin(a.problem, settings, a.impulses, a.velocities, a.report),
+            partner.begin(b.problem, settings, b.impulses, b.velocities, b.report),
+        );
+        let (pa, pb) = (a.problem.len(), b.problem.len());
+        let runs = match began {
+            (Ok(()), Ok(())) if self.batches_only(pa) && partner.batches_only(pb) => {
+                let (ra, rb) = dispatch(
+                    self.arch,
+                    PairLoop {
+                        a: self,
+                        b: &mut partner,
+                        settings,
+                        report_a: a.report,
+                        report_b: b.report,
+                    },
+                );
+                (Ok(ra), Ok(rb))
+            }
+            (ba, bb) => (
+                ba.map(|()| self.run(pa, settings, a.report)),
+                bb.map(|()| partner.run(pb, settings, b.report)),
+            ),
+        };
+        a.result = runs
+            .0
+            .and_then(|(it, v)| self.end(it, v, a.impulses, a.velocities, a.report));
+        b.result = runs
+            .1
+            .and_then(|(it, v)| partner.end(it, v, b.impulses, b.velocities, b.report));
+        self.partner = Some(partner);
+        let seconds = t0.elapsed().as_secs_f64();
+        let (wa, wb) = (
+            (pa as f64) * f64::from(a.report.iterations.max(1)),
+            (pb as f64) * f64::from(b.report.iterations.max(1)),
+        );
+        a.report.seconds = seconds * wa / (wa + wb);
+        b.report.seconds = seconds * wb / (wa + wb);
+    }
+}
+
+/// Where one island of a pair stands: iterations run, and its verdict once it has ended.
+#[derive(Default)]
+struct Progress {
+    it: u32,
+    ended: Option<Verdict>,
+}
+
+impl Progress {
+    /// Judges the island's iteration that produced `sweep`, as the one-island loop does: the
+    /// stop rule, a divergence or the cap ends it.
+    #[inline(always)]
+    fn judge(&mut self, settings: &SolverSettings, sweep: &Sweep, report: &mut SolveReport) {
+        self.it += 1;
+        match judge(settings, self.it, sweep, Some(report)) {
+            Verdict::Continue if self.it < settings.max_iterations => {}
+            verdict => self.ended = Some(verdict),
+        }
+    }
+
+    /// One iteration of `solver` alone.
+    #[inline(always)]
+    fn advance<K: BatchKernel>(
+        &mut self,
+        solver: &mut PgsSolver,
+        settings: &SolverSettings,
+        report: &mut SolveReport,
+        kernel: K,
+    ) {
+        let sweep = if settings.norm == ResidualNorm::Contact {
+            solver.iterate::<true, K>(kernel)
+        } else {
+            solver.iterate::<false, K>(kernel)
+        };
+        self.judge(settings, &sweep, report);
+    }
+
+    /// The iterations run and how the island ended (the cap: `Continue`).
+    fn outcome(&self) -> (u32, Verdict) {
+        (self.it, self.ended.unwrap_or(Verdict::Continue))
+    }
+}
+
+/// One iteration of both islands of a pair, side by side; their sweeps' measures.
+#[inline(always)]
+fn iterate_two<const CONTACT: bool, K: BatchKernel>(
+    a: &mut PgsSolver,
+    b: &mut PgsSolver,
+    kernel: K,
+) -> (Sweep, Sweep) {
+    let (mut la, mut lb) = (LaneSweep::default(), LaneSweep::default());
+    kernel.sweep_two::<CONTACT>(
+        Island {
+            batches: &mut a.batches,
+            vel: &mut a.vel,
+            lanes: &mut la,
+        },
+        Island {
+            batches: &mut b.batches,
+            vel: &mut b.vel,
+            lanes: &mut lb,
+        },
+    );
+    // As `iterate` folds an island swept as batches only.
+    let (mut sa, mut sb) = (Sweep::default(), Sweep::default());
+    sa.add_lanes(&la);
+    sb.add_lanes(&lb);
+    (sa, sb)
+}
+
+/// The iterations of a pair, compiled for the solver's instruction set.
+struct PairLoop<'a> {
+    a: &'a mut PgsSolver,
+    b: &'a mut PgsSolver,
+    settings: &'a SolverSettings,
+    report_a: &'a mut SolveReport,
+    report_b: &'a mut SolveReport,
+}
+
+impl KernelOp for PairLoop<'_> {
+    type Output = ((u32, Verdict), (u32, Verdict));
+
+    #[inline(always)]
+    fn run<K: BatchKernel>(self, kernel: K) -> Self::Output {
+        let settings = self.settings;
+        let (mut a, mut b) = (Progress::default(), Progress::default());
+        loop {
+            match (a.ended.is_none(), b.ended.is_none()) {
+                (true, true) => {
+                    let (sa, sb) = if settings.norm == ResidualNorm::Contact {
+                        iterate_two::<true, K>(self.a, self.b, kernel)
+                    } else {
+                        iterate_two::<false, K>(self.a, self.b, kernel)
+                    };
+                    a.judge(settings, &sa, self.report_a);
+                    b.judge(settings, &sb, self.report_b);
+                }
+                (true, false) => a.advance(self.a, settings, self.report_a, kernel),
+                (false, true) => b.advance(self.b, settings, self.report_b, kernel),
+                (false, false) => break,
+            }
+        }
+        (a.outcome(), b.outcome())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use deepcontact_core::{
+        CarriedWarmStart, ContactProblem, Impulse, Real, Velocity, WorldSettings, scene,
+    };
+
+    use super::*;
+
+    /// Every island of the first `steps` steps of a falling 100-body pile and of a pyramid
+    /// (small islands of circles; two-point manifolds), step by step.
+    fn islands_by_step(steps: usize) -> Vec<Vec<ContactProblem>> {
+        let mut out = Vec::new();
+        for mut world in [
+            scene::pile(12345, 100)
+                .unwrap()
+                .build(WorldSettings::default())
+                .unwrap(),
+            scene::pyramid(4).build(WorldSettings::default()).unwrap(),
+        ] {
+            let (mut s, mut p) = (PgsSolver::new(), crate::PgsPositionSolver::new());
+            for _ in 0..steps {
+                world.step(&mut CarriedWarmStart, &mut s, &mut p).unwrap();
+                out.push(world.last_problems().to_vec());
+            }
+        }
+        out
+    }
+
+    /// Everything a solve leaves, as bits: impulses, velocities, iterations, verdict,
+    /// residual curves, natural residual (not the time).
+    fn bits(impulses: &[Impulse], velocities: &[Velocity], r: &SolveReport) -> Vec<u64> {
+        let mut v: Vec<u64> = impulses
+            .iter()
+            .flat_map(|i| [i.normal.to_bits(), i.tangent.to_bits()])
+            .collect();
+        v.extend(
+            velocities
+                .iter()
+                .flat_map(|x| [x.linear.x, x.linear.y, x.angular].map(Real::to_bits)),
+        );
+        v.extend([u64::from(r.iterations), u64::from(r.converged)]);
+        v.extend(
+            r.residual_inf
+                .iter()
+                .chain(&r.residual_l2)
+                .map(|x| x.to_bits()),
+        );
+        v.push(r.natural_residual.to_bits());
+        v
+    }
+
+    #[test]
+    fn islands_solved_in_pairs_end_with_the_bits_of_their_own_solves() {
+        let steps = islands_by_step(60);
+        let start = |p: &ContactProblem| -> Vec<Impulse> {
+            (0..p.len())
+                .map(|i| Impulse::new(0.02 * (i % 5) as Real, 0.003 * (i % 3) as Real))
+                .collect()
+        };
+        let mut paired_steps = 0;
+        for stop in [
+            SolverSettings::default(),
+            SolverSettings {
+                norm: ResidualNorm::Contact,
+                ..SolverSettings::default()
+            },
+            SolverSettings {
+                tolerance: 0.0,
+                max_iterations: 30,
+                ..SolverSettings::default()
+            },
+        ] {
+            // One solver for the whole run, as the world keeps one.
+            let (mut many, mut alone) = (PgsSolver::new(), PgsSolver::new());
+            for problems in &steps {
+                let small = problems.iter().filter(|p| p.len() <= SMALL_POINTS).count();
+                paired_steps += usize::from(small >= 2);
+                let mut impulses: Vec<Vec<Impulse>> = problems.iter().map(start).collect();
+                let mut velocities: Vec<Vec<Velocity>> = problems
+                    .iter()
+                    .map(|p| vec![Velocity::default(); p.bodies.len()])
+                    .collect();
+                let mut reports = vec![SolveReport::default(); problems.len()];
+                let mut islands: Vec<IslandSolve<'_>> = problems
+                    .iter()
+                    .zip(&mut impulses)
+                    .zip(&mut velocities)
+                    .zip(&mut reports)
+                    .map(|(((p, i), v), r)| IslandSolve::new(p, i, v, r))
+                    .collect();
+                many.solve_many(&stop, &mut islands);
+                assert!(islands.iter().all(|i| i.result.is_ok()));
+                drop(islands);
+                for (k, p) in problems.iter().enumerate() {
+                    let mut imp = start(p);
+                    let mut vel = vec![Velocity::default(); p.bodies.len()];
+                    let mut report = SolveReport::default();
+                    alone
+                        .solve(p, &stop, &mut imp, &mut vel, &mut report)
+                        .unwrap();
+                    assert_eq!(
+                        bits(&impulses[k], &velocities[k], &reports[k]),
+                        bits(&imp, &vel, &report),
+                        "island {k} of {} ({} points), {stop:?}",
+                        problems.len(),
+                        p.len()
+                    );
+                }
+            }
+        }
+        assert!(paired_steps > 50, "{paired_steps} steps with a pair");
+    }
+
+    #[test]
+    fn a_failing_island_of_a_pair_leaves_its_partner_solved() {
+        let problems = islands_by_step(60)
+            .into_iter()
+            .find(|p| p.iter().filter(|p| p.len() <= SMALL_POINTS).count() >= 2);
+        let problems = problems.expect("a step with two small islands");
+        let small: Vec<&ContactProblem> = problems
+            .iter()
+            .filter(|p| p.len() <= SMALL_POINTS)
+            .take(2)
+            .collect();
+        let mut bad = vec![Impulse::default(); small[0].len()];
+        bad[0] = Impulse::new(Real::NAN, 0.0);
+        let mut good = vec![Impulse::default(); small[1].len()];
+        let mut v0 = vec![Velocity::default(); small[0].bodies.len()];
+        let mut v1 = vec![Velocity::default(); small[1].bodies.len()];
+        let (mut r0, mut r1) = (SolveReport::default(), SolveReport::default());
+        let mut islands = [
+            IslandSolve::new(small[0], &mut bad, &mut v0, &mut r0),
+            IslandSolve::new(small[1], &mut good, &mut v1, &mut r1),
+        ];
+        PgsSolver::new().solve_many(&SolverSettings::default(), &mut islands);
+        assert!(islands[0].result.is_err(), "a NaN start is an error");
+        assert!(islands[1].result.is_ok());
+        assert!(r1.iterations >= 1);
+    }
+}
