@@ -66,11 +66,9 @@ impl PgsSolver {
         b: &mut IslandSolve<'_>,
     ) {
         let t0 = Instant::now();
-        let mut partner = self
-            .partner
-            .take()
-            .unwrap_or_else(|| Box::new(PgsSolver::with_settings(self.settings)));
-        partner.arch = self.arch;
+        let mut partner = self.partner.take().unwrap_or_default();
+        // The options as they are now (a caller may have changed them since the last pair).
+        (partner.settings, partner.arch) = (self.settings, self.arch);
         let began = (
             self.begin(a.problem, settings, a.impulses, a.velocities, a.report),
             partner.begin(b.problem, settings, b.impulses, b.velocities, b.report),
@@ -328,6 +326,56 @@ mod tests {
             }
         }
         assert!(paired_steps > 50, "{paired_steps} steps with a pair");
+    }
+
+    #[test]
+    fn regression_pairs_kept_the_options_of_their_first_solve() {
+        // The partner solver was made with the options of the first pair and kept them: a
+        // later change (here: starts taken as given, outside the friction cone) reached only
+        // one island of each pair.
+        let problems = islands_by_step(60)
+            .into_iter()
+            .find(|p| p.iter().filter(|p| p.len() <= SMALL_POINTS).count() >= 2)
+            .expect("a step with two small islands");
+        let start = |p: &ContactProblem| vec![Impulse::new(0.05, 0.2); p.len()];
+        let stop = SolverSettings::default();
+        let solve_all = |solver: &mut PgsSolver| {
+            let mut impulses: Vec<Vec<Impulse>> = problems.iter().map(start).collect();
+            let mut velocities: Vec<Vec<Velocity>> = problems
+                .iter()
+                .map(|p| vec![Velocity::default(); p.bodies.len()])
+                .collect();
+            let mut reports = vec![SolveReport::default(); problems.len()];
+            let mut islands: Vec<IslandSolve<'_>> = problems
+                .iter()
+                .zip(&mut impulses)
+                .zip(&mut velocities)
+                .zip(&mut reports)
+                .map(|(((p, i), v), r)| IslandSolve::new(p, i, v, r))
+                .collect();
+            solver.solve_many(&stop, &mut islands);
+            assert!(islands.iter().all(|i| i.result.is_ok()));
+            drop(islands);
+            (0..problems.len())
+                .map(|k| bits(&impulses[k], &velocities[k], &reports[k]))
+                .collect::<Vec<_>>()
+        };
+        let mut reused = PgsSolver::new();
+        solve_all(&mut reused);
+        reused.settings.raw_start = true;
+        let mut alone = PgsSolver::with_settings(reused.settings);
+        let each_alone: Vec<Vec<u64>> = problems
+            .iter()
+            .map(|p| {
+                let (mut imp, mut vel) = (start(p), vec![Velocity::default(); p.bodies.len()]);
+                let mut report = SolveReport::default();
+                alone
+                    .solve(p, &stop, &mut imp, &mut vel, &mut report)
+                    .unwrap();
+                bits(&imp, &vel, &report)
+            })
+            .collect();
+        assert_eq!(solve_all(&mut reused), each_alone);
     }
 
     #[test]
