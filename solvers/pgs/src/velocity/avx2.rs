@@ -4,9 +4,10 @@
 //! hundred instructions, so the out-of-order window holds little more than one: running two
 //! batches of a colour side by side (they share no movable body) lets their chains overlap.
 //! The compiler's own vectorisation of the portable loop does not survive that restructuring,
-//! hence the intrinsics. Every arithmetic operation is the portable loop's, in its order, on
-//! the same IEEE doubles (no fused multiply-add), and the measures are folded batch by batch,
-//! so the bits are the same.
+//! hence the intrinsics. Two small islands are swept the same way, the k-th batch of one
+//! beside the k-th of the other ([`sweep_two`], for [`crate::velocity_many`]). Every
+//! arithmetic operation is the portable loop's, in its order, on the same IEEE doubles (no
+//! fused multiply-add), and the measures are folded batch by batch, so the bits are the same.
 
 use core::arch::x86_64::__m256d;
 
@@ -55,7 +56,8 @@ struct InFlight {
     dn: __m256d,
 }
 
-/// The arithmetic of a batch, as closures over the instruction set.
+/// The arithmetic of a batch: the AVX2 token and the two constants it needs, with one method
+/// per operation (methods, not closures: a closure is compiled outside the AVX2 context).
 #[derive(Clone, Copy)]
 struct Ops {
     simd: V3,
