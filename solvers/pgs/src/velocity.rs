@@ -802,7 +802,7 @@ pub(crate) struct Sweep {
     /// `Σ Δλ²` over the rows.
     pub(crate) sum_sq: Real,
     /// The largest per-manifold `Δλn² + max(0, Δλt)²` (`Δλn` of one-point manifolds only),
-    /// the square of [`ResidualNorm::Contact`](deepcontact_core::ResidualNorm::Contact).
+    /// the square of [`ResidualNorm::Contact`].
     pub(crate) contact_sq: Real,
 }
 
