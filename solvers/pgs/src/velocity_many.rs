@@ -266,6 +266,54 @@ mod tests {
         v
     }
 
+    /// [`bits`] of every island of `problems` solved through `solve_many` from `start`.
+    fn solved_many(
+        solver: &mut PgsSolver,
+        problems: &[ContactProblem],
+        stop: &SolverSettings,
+        start: impl Fn(&ContactProblem) -> Vec<Impulse>,
+    ) -> Vec<Vec<u64>> {
+        let mut impulses: Vec<Vec<Impulse>> = problems.iter().map(start).collect();
+        let mut velocities: Vec<Vec<Velocity>> = problems
+            .iter()
+            .map(|p| vec![Velocity::default(); p.bodies.len()])
+            .collect();
+        let mut reports = vec![SolveReport::default(); problems.len()];
+        let mut islands: Vec<IslandSolve<'_>> = problems
+            .iter()
+            .zip(&mut impulses)
+            .zip(&mut velocities)
+            .zip(&mut reports)
+            .map(|(((p, i), v), r)| IslandSolve::new(p, i, v, r))
+            .collect();
+        solver.solve_many(stop, &mut islands);
+        assert!(islands.iter().all(|i| i.result.is_ok()));
+        drop(islands);
+        (0..problems.len())
+            .map(|k| bits(&impulses[k], &velocities[k], &reports[k]))
+            .collect()
+    }
+
+    /// [`bits`] of every island of `problems` solved alone from `start`.
+    fn solved_alone(
+        solver: &mut PgsSolver,
+        problems: &[ContactProblem],
+        stop: &SolverSettings,
+        start: impl Fn(&ContactProblem) -> Vec<Impulse>,
+    ) -> Vec<Vec<u64>> {
+        problems
+            .iter()
+            .map(|p| {
+                let (mut imp, mut vel) = (start(p), vec![Velocity::default(); p.bodies.len()]);
+                let mut report = SolveReport::default();
+                solver
+                    .solve(p, stop, &mut imp, &mut vel, &mut report)
+                    .unwrap();
+                bits(&imp, &vel, &report)
+            })
+            .collect()
+    }
+
     #[test]
     fn islands_solved_in_pairs_end_with_the_bits_of_their_own_solves() {
         let steps = islands_by_step(60);
@@ -292,32 +340,12 @@ mod tests {
             for problems in &steps {
                 let small = problems.iter().filter(|p| p.len() <= SMALL_POINTS).count();
                 paired_steps += usize::from(small >= 2);
-                let mut impulses: Vec<Vec<Impulse>> = problems.iter().map(start).collect();
-                let mut velocities: Vec<Vec<Velocity>> = problems
-                    .iter()
-                    .map(|p| vec![Velocity::default(); p.bodies.len()])
-                    .collect();
-                let mut reports = vec![SolveReport::default(); problems.len()];
-                let mut islands: Vec<IslandSolve<'_>> = problems
-                    .iter()
-                    .zip(&mut impulses)
-                    .zip(&mut velocities)
-                    .zip(&mut reports)
-                    .map(|(((p, i), v), r)| IslandSolve::new(p, i, v, r))
-                    .collect();
-                many.solve_many(&stop, &mut islands);
-                assert!(islands.iter().all(|i| i.result.is_ok()));
-                drop(islands);
+                let many_bits = solved_many(&mut many, problems, &stop, start);
+                let alone_bits = solved_alone(&mut alone, problems, &stop, start);
                 for (k, p) in problems.iter().enumerate() {
-                    let mut imp = start(p);
-                    let mut vel = vec![Velocity::default(); p.bodies.len()];
-                    let mut report = SolveReport::default();
-                    alone
-                        .solve(p, &stop, &mut imp, &mut vel, &mut report)
-                        .unwrap();
                     assert_eq!(
-                        bits(&impulses[k], &velocities[k], &reports[k]),
-                        bits(&imp, &vel, &report),
+                        many_bits[k],
+                        alone_bits[k],
                         "island {k} of {} ({} points), {stop:?}",
                         problems.len(),
                         p.len()
@@ -339,43 +367,14 @@ mod tests {
             .expect("a step with two small islands");
         let start = |p: &ContactProblem| vec![Impulse::new(0.05, 0.2); p.len()];
         let stop = SolverSettings::default();
-        let solve_all = |solver: &mut PgsSolver| {
-            let mut impulses: Vec<Vec<Impulse>> = problems.iter().map(start).collect();
-            let mut velocities: Vec<Vec<Velocity>> = problems
-                .iter()
-                .map(|p| vec![Velocity::default(); p.bodies.len()])
-                .collect();
-            let mut reports = vec![SolveReport::default(); problems.len()];
-            let mut islands: Vec<IslandSolve<'_>> = problems
-                .iter()
-                .zip(&mut impulses)
-                .zip(&mut velocities)
-                .zip(&mut reports)
-                .map(|(((p, i), v), r)| IslandSolve::new(p, i, v, r))
-                .collect();
-            solver.solve_many(&stop, &mut islands);
-            assert!(islands.iter().all(|i| i.result.is_ok()));
-            drop(islands);
-            (0..problems.len())
-                .map(|k| bits(&impulses[k], &velocities[k], &reports[k]))
-                .collect::<Vec<_>>()
-        };
         let mut reused = PgsSolver::new();
-        solve_all(&mut reused);
+        solved_many(&mut reused, &problems, &stop, start);
         reused.settings.raw_start = true;
         let mut alone = PgsSolver::with_settings(reused.settings);
-        let each_alone: Vec<Vec<u64>> = problems
-            .iter()
-            .map(|p| {
-                let (mut imp, mut vel) = (start(p), vec![Velocity::default(); p.bodies.len()]);
-                let mut report = SolveReport::default();
-                alone
-                    .solve(p, &stop, &mut imp, &mut vel, &mut report)
-                    .unwrap();
-                bits(&imp, &vel, &report)
-            })
-            .collect();
-        assert_eq!(solve_all(&mut reused), each_alone);
+        assert_eq!(
+            solved_many(&mut reused, &problems, &stop, start),
+            solved_alone(&mut alone, &problems, &stop, start)
+        );
     }
 
     #[test]
