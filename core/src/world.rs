@@ -187,6 +187,18 @@ struct IslandWork {
     error: Option<CoreError>,
 }
 
+impl IslandWork {
+    /// The solve's buffers made ready for `problem`: the impulses start from the warm start,
+    /// one velocity slot per body.
+    fn reset_buffers(&mut self, problem: &ContactProblem) {
+        self.impulses.clear();
+        self.impulses.extend_from_slice(&self.warm);
+        self.velocities.clear();
+        self.velocities
+            .resize(problem.bodies.len(), Velocity::default());
+    }
+}
+
 /// A 2D rigid-body world stepped Box2D-style with pluggable warm start and solvers.
 ///
 /// `Clone` copies everything a step depends on (bodies, settings, step index, the previous
@@ -543,11 +555,7 @@ impl World {
         let settings = &self.settings.solver;
         let solve =
             |solver: &mut dyn VelocitySolver, problem: &ContactProblem, w: &mut IslandWork| {
-                w.impulses.clear();
-                w.impulses.extend_from_slice(&w.warm);
-                w.velocities.clear();
-                w.velocities
-                    .resize(problem.bodies.len(), Velocity::default());
+                w.reset_buffers(problem);
                 w.error = solver
                     .solve(
                         problem,
@@ -580,11 +588,7 @@ impl World {
                 .iter()
                 .zip(&mut s.islands)
                 .map(|(problem, w)| {
-                    w.impulses.clear();
-                    w.impulses.extend_from_slice(&w.warm);
-                    w.velocities.clear();
-                    w.velocities
-                        .resize(problem.bodies.len(), Velocity::default());
+                    w.reset_buffers(problem);
                     crate::IslandSolve::new(
                         problem,
                         &mut w.impulses,
