@@ -202,6 +202,20 @@ pub(crate) struct Batch {
     lt: [Real; LANES],
 }
 
+impl Batch {
+    /// A batch of padding lanes only: reading the `dummy` body, writing the `sink`.
+    pub(crate) fn empty(dummy: u32, sink: u32) -> Self {
+        Batch {
+            a: [dummy; LANES],
+            b: [dummy; LANES],
+            wa: [sink; LANES],
+            wb: [sink; LANES],
+            row: [u32::MAX; LANES],
+            ..Batch::default()
+        }
+    }
+}
+
 /// One colour of the sweep: its batches, then its other manifolds one at a time.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Segment {
@@ -485,14 +499,7 @@ impl PgsSolver {
                     continue;
                 }
                 if lane == LANES {
-                    self.batches.push(Batch {
-                        a: [dummy; LANES],
-                        b: [dummy; LANES],
-                        wa: [sink; LANES],
-                        wb: [sink; LANES],
-                        row: [u32::MAX; LANES],
-                        ..Batch::default()
-                    });
+                    self.batches.push(Batch::empty(dummy, sink));
                     lane = 0;
                 }
                 let batch = self.batches.last_mut().expect("pushed above");

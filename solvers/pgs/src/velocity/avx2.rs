@@ -220,6 +220,15 @@ fn finish<const CONTACT: bool>(
     }
 }
 
+/// One batch alone.
+#[inline(always)]
+fn sweep_one<const CONTACT: bool>(o: Ops, b: &mut Batch, vel: &mut [Vel], lanes: &mut LaneSweep) {
+    let mut s = start(o, b, vel);
+    friction(o, b, &mut s);
+    normal(o, b, &mut s);
+    finish::<CONTACT>(o, b, s, vel, lanes);
+}
+
 /// The batches of one colour in order, two at a time: the second's dependent chain runs
 /// beside the first's (they share no movable body; three or four at a time spill registers),
 /// the measures folded batch by batch.
@@ -245,10 +254,7 @@ pub(crate) fn sweep_colour<const CONTACT: bool>(
         finish::<CONTACT>(o, b1, s1, vel, lanes);
     }
     for b in pairs.into_remainder() {
-        let mut s = start(o, b, vel);
-        friction(o, b, &mut s);
-        normal(o, b, &mut s);
-        finish::<CONTACT>(o, b, s, vel, lanes);
+        sweep_one::<CONTACT>(o, b, vel, lanes);
     }
 }
 
@@ -275,10 +281,7 @@ pub(crate) fn sweep_two<const CONTACT: bool>(simd: V3, a: Island<'_>, b: Island<
         (tail_b, b.vel, b.lanes),
     ] {
         for x in batches {
-            let mut s = start(o, x, vel);
-            friction(o, x, &mut s);
-            normal(o, x, &mut s);
-            finish::<CONTACT>(o, x, s, vel, lanes);
+            sweep_one::<CONTACT>(o, x, vel, lanes);
         }
     }
 }
@@ -306,14 +309,7 @@ mod tests {
         let mut next = 0;
         let mut batches = Vec::new();
         for _ in 0..n {
-            let mut b = Batch {
-                a: [dummy; LANES],
-                b: [dummy; LANES],
-                wa: [sink; LANES],
-                wb: [sink; LANES],
-                row: [u32::MAX; LANES],
-                ..Batch::default()
-            };
+            let mut b = Batch::empty(dummy, sink);
             for lane in 0..LANES {
                 if rng.uniform() < 0.1 {
                     continue; // padding
