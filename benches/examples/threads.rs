@@ -130,6 +130,7 @@ fn run(snapshot: &World, config: Config, steps: u64) -> Result<Run, String> {
     world
         .set_settings(WorldSettings {
             island_threads,
+            collide_threads: island_threads,
             ..WorldSettings::default()
         })
         .map_err(|e| e.to_string())?;

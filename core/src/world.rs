@@ -43,6 +43,10 @@ pub struct WorldSettings {
     /// observation after the last, whatever this is, so results are bit-identical for any
     /// count.
     pub island_threads: usize,
+    /// Threads that share the narrow phase's pairs, each a contiguous share of at least
+    /// [`MIN_PAIRS_PER_THREAD`](crate::narrow_phase::MIN_PAIRS_PER_THREAD) (default 1; at
+    /// least 1). The contacts are the same, in the same order, for any count.
+    pub collide_threads: usize,
 }
 
 impl Default for WorldSettings {
@@ -58,6 +62,7 @@ impl Default for WorldSettings {
             max_rotation: 0.5 * std::f64::consts::PI,
             guard: GuardPolicy::FallbackToZero,
             island_threads: 1,
+            collide_threads: 1,
         }
     }
 }
@@ -104,6 +109,9 @@ impl WorldSettings {
         }
         if self.island_threads == 0 {
             return err("island_threads", 0.0, "must be >= 1");
+        }
+        if self.collide_threads == 0 {
+            return err("collide_threads", 0.0, "must be >= 1");
         }
         self.solver.validate()?;
         self.position.validate()
@@ -484,7 +492,12 @@ impl World {
     fn collide(&mut self, s: &mut Scratch) {
         let prediction = self.settings.prediction;
         let pairs = self.broad.find_pairs(&self.bodies, prediction);
-        self.narrow.collide(&self.bodies, pairs, prediction);
+        self.narrow.collide_on(
+            &self.bodies,
+            pairs,
+            prediction,
+            self.settings.collide_threads,
+        );
         self.persistent
             .match_contacts(&self.narrow.contacts, &mut s.matched);
         s.solved.clear();

@@ -25,7 +25,8 @@ pub struct SimulateConfig {
     /// World settings (default: the thesis's).
     pub world: WorldSettings,
     /// Threads (default 1; `pgs` only): they solve a step's islands side by side
-    /// ([`WorldSettings::island_threads`]) and share the velocity and position solve of one
+    /// ([`WorldSettings::island_threads`]), share the narrow phase
+    /// ([`WorldSettings::collide_threads`]) and share the velocity and position solve of one
     /// large island (the solver spec gains `threads=`). Results are bit-identical for any
     /// count.
     pub threads: usize,
@@ -122,6 +123,7 @@ pub fn run_scene(
     let scene = scene::by_name(&config.scene, config.seed, config.bodies)?;
     let mut world = scene.build(WorldSettings {
         island_threads: config.threads.max(1),
+        collide_threads: config.threads.max(1),
         ..config.world
     })?;
     let late_from = config.late_from();

@@ -67,6 +67,7 @@ fn compare_outputs_are_the_same_for_one_two_and_four_solver_threads() {
         solvers: split_spec_list(solver).unwrap(),
         world: deepcontact_core::WorldSettings {
             island_threads,
+            collide_threads: island_threads,
             ..deepcontact_core::WorldSettings::default()
         },
         ..small(2)
