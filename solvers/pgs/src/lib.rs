@@ -42,6 +42,7 @@ mod sync;
 mod velocity;
 mod velocity_chunked;
 mod velocity_domains;
+mod velocity_lanes;
 mod velocity_many;
 mod z_order;
 

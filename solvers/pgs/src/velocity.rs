@@ -214,6 +214,42 @@ impl Batch {
             ..Batch::default()
         }
     }
+
+    /// Lane `to` becomes lane `from` of `src`, its bodies and write targets moved by
+    /// `offset` slots (the source island's velocities placed `offset` slots in).
+    pub(crate) fn set_lane(&mut self, to: usize, src: &Batch, from: usize, offset: u32) {
+        self.a[to] = src.a[from] + offset;
+        self.b[to] = src.b[from] + offset;
+        self.wa[to] = src.wa[from] + offset;
+        self.wb[to] = src.wb[from] + offset;
+        self.row[to] = src.row[from];
+        for (dst, src) in [
+            (&mut self.nx, &src.nx),
+            (&mut self.ny, &src.ny),
+            (&mut self.rna, &src.rna),
+            (&mut self.rnb, &src.rnb),
+            (&mut self.rta, &src.rta),
+            (&mut self.rtb, &src.rtb),
+            (&mut self.normal_mass, &src.normal_mass),
+            (&mut self.tangent_mass, &src.tangent_mass),
+            (&mut self.friction, &src.friction),
+            (&mut self.bias, &src.bias),
+            (&mut self.ma, &src.ma),
+            (&mut self.ia, &src.ia),
+            (&mut self.mb, &src.mb),
+            (&mut self.ib, &src.ib),
+            (&mut self.ln, &src.ln),
+            (&mut self.lt, &src.lt),
+        ] {
+            dst[to] = src[from];
+        }
+    }
+
+    /// The impulses of lane `from` of `src` into lane `to` (all a sweep changes in a batch).
+    pub(crate) fn set_impulses(&mut self, to: usize, src: &Batch, from: usize) {
+        self.ln[to] = src.ln[from];
+        self.lt[to] = src.lt[from];
+    }
 }
 
 /// One colour of the sweep: its batches, then its other manifolds one at a time.
@@ -258,6 +294,9 @@ pub struct PgsSolver {
     /// The second solver of a pair of small islands ([`crate::velocity_many`]), made at the
     /// first pair.
     pub(crate) partner: Option<Box<PgsSolver>>,
+    /// The solvers of one-point islands packed into the lanes of one sweep
+    /// ([`crate::velocity_lanes`]), made at the first pack.
+    pub(crate) lane_solvers: Vec<PgsSolver>,
 }
 
 impl PgsSolver {
@@ -874,6 +913,18 @@ pub(crate) struct LaneSweep {
     max: [Real; LANES],
     sum_sq: [Real; LANES],
     contact_sq: [Real; LANES],
+}
+
+impl LaneSweep {
+    /// The measures of `lane` alone, moved to lane 0 (the others zero): what a batch whose
+    /// other lanes are padding measures.
+    pub(crate) fn only(&self, lane: usize) -> Self {
+        let mut one = Self::default();
+        one.max[0] = self.max[lane];
+        one.sum_sq[0] = self.sum_sq[lane];
+        one.contact_sq[0] = self.contact_sq[lane];
+        one
+    }
 }
 
 /// One manifold's rows: friction first (bounded by the current normal impulse), then the

@@ -16,6 +16,7 @@ use deepcontact_core::{IslandSolve, ResidualNorm, SolveReport, SolverSettings, V
 use crate::velocity::{
     BatchKernel, Island, KernelOp, LaneSweep, PgsSolver, Sweep, Verdict, dispatch, judge,
 };
+use crate::velocity_lanes::PACK;
 
 /// Islands of at most this many contact points are paired: below it the per-iteration chain,
 /// not the work, sets a sweep's time (a one-point island costs 40–50 ns per pass, an island of
@@ -23,15 +24,27 @@ use crate::velocity::{
 pub(crate) const SMALL_POINTS: usize = 32;
 
 impl PgsSolver {
-    /// `solve_many` for PGS: islands of up to [`SMALL_POINTS`] points are solved in pairs
-    /// (in the order they come), the others alone, each to the bits of its own solve.
+    /// `solve_many` for PGS: one-point islands are packed into the lanes of one sweep, up to
+    /// [`PACK`] at a time ([`crate::velocity_lanes`]); other islands of up to [`SMALL_POINTS`]
+    /// points are solved in pairs (in the order they come), the others alone; each ends with
+    /// the bits of its own solve.
     pub(crate) fn solve_islands(
         &mut self,
         settings: &SolverSettings,
         islands: &mut [IslandSolve<'_>],
     ) {
         let mut waiting: Option<usize> = None;
+        let (mut group, mut grouped) = ([0usize; PACK], 0);
         for k in 0..islands.len() {
+            if islands[k].problem.points.len() == 1 {
+                group[grouped] = k;
+                grouped += 1;
+                if grouped == PACK {
+                    self.solve_packed(settings, islands, &group);
+                    grouped = 0;
+                }
+                continue;
+            }
             if islands[k].problem.points.len() > SMALL_POINTS {
                 let i = &mut islands[k];
                 i.result = self.solve(i.problem, settings, i.impulses, i.velocities, i.report);
@@ -45,6 +58,9 @@ impl PgsSolver {
                 }
             }
         }
+        if grouped > 0 {
+            self.solve_packed(settings, islands, &group[..grouped]);
+        }
         if let Some(j) = waiting {
             let i = &mut islands[j];
             i.result = self.solve(i.problem, settings, i.impulses, i.velocities, i.report);
@@ -52,7 +68,7 @@ impl PgsSolver {
     }
 
     /// Whether this solver's prepared island is swept as batches only, in the plain plan.
-    fn batches_only(&self, points: usize) -> bool {
+    pub(crate) fn batches_only(&self, points: usize) -> bool {
         !self.plans_chunked(points) && !self.segments.is_empty() && self.scratch.is_empty()
     }
 
@@ -112,16 +128,21 @@ impl PgsSolver {
 
 /// Where one island of a pair stands: iterations run, and its verdict once it has ended.
 #[derive(Default)]
-struct Progress {
-    it: u32,
-    ended: Option<Verdict>,
+pub(crate) struct Progress {
+    pub(crate) it: u32,
+    pub(crate) ended: Option<Verdict>,
 }
 
 impl Progress {
     /// Judges the island's iteration that produced `sweep`, as the one-island loop does: the
     /// stop rule, a divergence or the cap ends it.
     #[inline(always)]
-    fn judge(&mut self, settings: &SolverSettings, sweep: &Sweep, report: &mut SolveReport) {
+    pub(crate) fn judge(
+        &mut self,
+        settings: &SolverSettings,
+        sweep: &Sweep,
+        report: &mut SolveReport,
+    ) {
         self.it += 1;
         match judge(settings, self.it, sweep, Some(report)) {
             Verdict::Continue if self.it < settings.max_iterations => {}
@@ -147,7 +168,7 @@ impl Progress {
     }
 
     /// The iterations run and how the island ended (the cap: `Continue`).
-    fn outcome(&self) -> (u32, Verdict) {
+    pub(crate) fn outcome(&self) -> (u32, Verdict) {
         (self.it, self.ended.unwrap_or(Verdict::Continue))
     }
 }
@@ -354,6 +375,91 @@ mod tests {
             }
         }
         assert!(paired_steps > 50, "{paired_steps} steps with a pair");
+    }
+
+    #[test]
+    fn one_point_islands_packed_in_lanes_end_with_the_bits_of_their_own_solves() {
+        // The one-point islands of both runs, handed over in calls of 1 to 19 islands (full
+        // packs, partial packs, a lone island), from starts that make them stop at different
+        // iterations, under three stop rules; one island in each call starts from NaN and
+        // fails.
+        let ones: Vec<ContactProblem> = islands_by_step(60)
+            .into_iter()
+            .flatten()
+            .filter(|p| p.len() == 1)
+            .collect();
+        assert!(ones.len() >= 52, "{} one-point islands", ones.len());
+        let start = |p: &ContactProblem| -> Vec<Impulse> {
+            let x = p.bodies[p.points[0].body_b as usize].position.x;
+            let f = (7.0 * x).fract().abs();
+            vec![Impulse::new(
+                10.0_f64.powf(4.0 * f) - 1.0,
+                (50.0 * x).sin() * f,
+            )]
+        };
+        for stop in [
+            SolverSettings::default(),
+            SolverSettings {
+                norm: ResidualNorm::Contact,
+                tolerance: 1e-9,
+                ..SolverSettings::default()
+            },
+            SolverSettings {
+                tolerance: 0.0,
+                max_iterations: 7,
+                ..SolverSettings::default()
+            },
+        ] {
+            let (mut many, mut alone) = (PgsSolver::new(), PgsSolver::new());
+            let mut iterations = std::collections::BTreeSet::new();
+            let mut at = 0;
+            for size in [1, 3, 8, 9, 12, 19] {
+                let call = &ones[at..at + size];
+                at += size;
+                let nan = size / 2;
+                let start_of = |p: &ContactProblem| {
+                    let mut s = start(p);
+                    if std::ptr::eq(p, &call[nan]) {
+                        s[0].normal = Real::NAN;
+                    }
+                    s
+                };
+                let mut impulses: Vec<Vec<Impulse>> = call.iter().map(start_of).collect();
+                let mut velocities: Vec<Vec<Velocity>> = call
+                    .iter()
+                    .map(|p| vec![Velocity::default(); p.bodies.len()])
+                    .collect();
+                let mut reports = vec![SolveReport::default(); call.len()];
+                let mut islands: Vec<IslandSolve<'_>> = call
+                    .iter()
+                    .zip(&mut impulses)
+                    .zip(&mut velocities)
+                    .zip(&mut reports)
+                    .map(|(((p, i), v), r)| IslandSolve::new(p, i, v, r))
+                    .collect();
+                many.solve_many(&stop, &mut islands);
+                for (k, island) in islands.iter().enumerate() {
+                    assert_eq!(island.result.is_err(), k == nan, "island {k} of {size}");
+                }
+                drop(islands);
+                for (k, p) in call.iter().enumerate().filter(|&(k, _)| k != nan) {
+                    let (mut imp, mut vel) = (start(p), vec![Velocity::default(); p.bodies.len()]);
+                    let mut report = SolveReport::default();
+                    alone
+                        .solve(p, &stop, &mut imp, &mut vel, &mut report)
+                        .unwrap();
+                    iterations.insert(report.iterations);
+                    assert_eq!(
+                        bits(&impulses[k], &velocities[k], &reports[k]),
+                        bits(&imp, &vel, &report),
+                        "island {k} of {size}, {stop:?}"
+                    );
+                }
+            }
+            if stop.tolerance > 0.0 {
+                assert!(iterations.len() >= 2, "stops at {iterations:?}");
+            }
+        }
     }
 
     #[test]
