@@ -245,6 +245,11 @@ impl Batch {
         }
     }
 
+    /// How many lanes hold a manifold (they come first; the rest are padding).
+    pub(crate) fn width(&self) -> usize {
+        self.row.iter().take_while(|&&r| r != u32::MAX).count()
+    }
+
     /// The impulses of lane `from` of `src` into lane `to` (all a sweep changes in a batch).
     pub(crate) fn set_impulses(&mut self, to: usize, src: &Batch, from: usize) {
         self.ln[to] = src.ln[from];
@@ -291,12 +296,12 @@ pub struct PgsSolver {
     pub(crate) arch: pulp::Arch,
     /// The domain plan's parts ([`PgsSettings::domains`]; empty otherwise).
     domains: crate::velocity_domains::Domains,
-    /// The second solver of a pair of small islands ([`crate::velocity_many`]), made at the
-    /// first pair.
-    pub(crate) partner: Option<Box<PgsSolver>>,
-    /// The solvers of one-point islands packed into the lanes of one sweep
-    /// ([`crate::velocity_lanes`]), made at the first pack.
+    /// The solvers of the small islands solved together ([`crate::velocity_lanes`]), one per
+    /// island of a step, kept for the next.
     pub(crate) lane_solvers: Vec<PgsSolver>,
+    /// The small islands of a step (their indices), and how each is swept.
+    pub(crate) small_islands: Vec<usize>,
+    pub(crate) small_kinds: Vec<crate::velocity_lanes::Kind>,
 }
 
 impl PgsSolver {
@@ -863,6 +868,19 @@ impl Sweep {
         }
     }
 
+    /// [`Self::add_lanes`] for an island that owns lanes `first..first + width` of `lanes`
+    /// (the others being padding of its own batches, or other islands'). The same bits: a
+    /// padding lane measures exactly +0, and folding a +0 into a sum of squares or a
+    /// maximum of magnitudes (never NaN: `max` skips it) changes nothing.
+    #[inline]
+    pub(crate) fn add_span(&mut self, lanes: &LaneSweep, first: usize, width: usize) {
+        for lane in first..first + width {
+            self.max = self.max.max(lanes.max[lane]);
+            self.sum_sq += lanes.sum_sq[lane];
+            self.contact_sq = self.contact_sq.max(lanes.contact_sq[lane]);
+        }
+    }
+
     /// Folds in the measures of rows swept after this sweep's.
     #[inline]
     pub(crate) fn add(&mut self, other: &Sweep) {
@@ -913,18 +931,6 @@ pub(crate) struct LaneSweep {
     max: [Real; LANES],
     sum_sq: [Real; LANES],
     contact_sq: [Real; LANES],
-}
-
-impl LaneSweep {
-    /// The measures of `lane` alone, moved to lane 0 (the others zero): what a batch whose
-    /// other lanes are padding measures.
-    pub(crate) fn only(&self, lane: usize) -> Self {
-        let mut one = Self::default();
-        one.max[0] = self.max[lane];
-        one.sum_sq[0] = self.sum_sq[lane];
-        one.contact_sq[0] = self.contact_sq[lane];
-        one
-    }
 }
 
 /// One manifold's rows: friction first (bounded by the current normal impulse), then the

@@ -1,35 +1,100 @@
-//! One-point islands packed into the lanes of one sweep ([`VelocitySolver::solve_many`]).
+//! Small islands packed into the lanes of shared batches ([`VelocitySolver::solve_many`]).
 //!
-//! An island of one contact point is one manifold: alone, its sweep is one batch of which
-//! three lanes are padding, and an iteration is that manifold's dependent chain. Up to
-//! [`PACK`] such islands (they share no body) fill the lanes of two batches instead, swept
-//! side by side, so that one iteration advances them all. Each island is prepared and
-//! finished by a solver of its own, as alone. Its lane's measures are judged as its own
-//! batch's would be (padding lanes measure exactly zero), and its impulses and velocities
-//! are taken back when its stop rule, a divergence or the cap ends it (the lane is swept on
-//! with the others and its later values dropped), so each ends with the bits of its own
-//! solve.
+//! A small island swept alone leaves lanes of its batches empty (padding), and an iteration
+//! is its manifolds' dependent chain. Small islands share no body, so several fill the lanes
+//! of shared batches instead: an island whose batches use at most `w` lanes takes `w`
+//! adjacent lanes of every batch of a half of the pack, its k-th batch in the half's k-th;
+//! the two halves of a pack ([`PACK`] lanes in all) are swept side by side. One iteration
+//! advances every island of the pack, each through its own sequence of batches, in its own
+//! order. Each island is prepared and finished by a solver of its own, as alone. Its lanes'
+//! measures are folded as its own batches' would be (padding lanes measure exactly zero),
+//! and its impulses and velocities are taken back when its stop rule, a divergence or the cap
+//! ends it (its lanes are swept on with the others and their later values dropped), so each
+//! ends with the bits of its own solve. Islands not swept as batches only (two-point
+//! manifolds, other options) are solved alone.
 //!
 //! [`VelocitySolver::solve_many`]: deepcontact_core::VelocitySolver::solve_many
 
 use std::time::Instant;
 
-use deepcontact_core::{IslandSolve, ResidualNorm, SolverSettings};
+use deepcontact_core::{IslandSolve, SolveReport, SolverSettings};
 
 use crate::velocity::{
-    Batch, BatchKernel, Island, KernelOp, LANES, LaneSweep, PgsSolver, Sweep, Vel, dispatch,
+    Batch, BatchKernel, Island, KernelOp, LANES, LaneSweep, PgsSolver, Sweep, Vel, Verdict,
+    dispatch,
 };
 use crate::velocity_many::Progress;
 
-/// One-point islands swept together: the lanes of two batches.
+/// Lanes of a pack: two halves of [`LANES`].
 pub(crate) const PACK: usize = 2 * LANES;
 
+/// How a prepared small island is swept.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Kind {
+    /// Already finished (alone, or its preparation failed).
+    Done,
+    /// Batches only, this many lanes wide (at most [`LANES`]): in a pack.
+    Pack(usize),
+}
+
+/// One island of a pack: its index in the group, half, first lane and width.
+#[derive(Debug, Clone, Copy, Default)]
+struct Member {
+    island: usize,
+    half: usize,
+    lane: usize,
+    width: usize,
+}
+
+/// The islands of one pack, lanes taken first fit.
+#[derive(Debug, Clone, Copy, Default)]
+struct Pack {
+    members: [Member; PACK],
+    count: usize,
+    used: [usize; 2],
+}
+
+impl Pack {
+    /// Adds island `island` of `width` lanes to the first half with room; false if neither
+    /// has room.
+    fn add(&mut self, island: usize, width: usize) -> bool {
+        let Some(half) = (0..2).find(|&h| self.used[h] + width <= LANES) else {
+            return false;
+        };
+        self.members[self.count] = Member {
+            island,
+            half,
+            lane: self.used[half],
+            width,
+        };
+        self.count += 1;
+        self.used[half] += width;
+        true
+    }
+
+    fn members(&self) -> &[Member] {
+        &self.members[..self.count]
+    }
+}
+
+/// The time of a group shared out between its islands, in proportion to their
+/// point-iterations.
+fn share_time(seconds: f64, islands: &mut [IslandSolve<'_>], group: &[usize]) {
+    let weight =
+        |i: &IslandSolve<'_>| (i.problem.len() as f64) * f64::from(i.report.iterations.max(1));
+    let total: f64 = group.iter().map(|&k| weight(&islands[k])).sum();
+    for &k in group {
+        let w = weight(&islands[k]);
+        islands[k].report.seconds = seconds * w / total;
+    }
+}
+
 impl PgsSolver {
-    /// Solves the one-point islands `islands[k]`, `k` in `group` (at most [`PACK`]), packed
-    /// into the lanes of one sweep; an island that is not swept as one batch (other options)
-    /// is solved alone. The group's time is shared out between the reports in proportion to
-    /// their iterations.
-    pub(crate) fn solve_packed(
+    /// Solves the small islands `islands[k]`, `k` in `group`: each prepared on a solver of its
+    /// own, then packed if it is swept as batches only (at most [`LANES`] wide, as every
+    /// batch is), else alone; the group's time is shared out between the reports in
+    /// proportion to their point-iterations.
+    pub(crate) fn solve_small(
         &mut self,
         settings: &SolverSettings,
         islands: &mut [IslandSolve<'_>],
@@ -40,174 +105,195 @@ impl PgsSolver {
         if solvers.len() < group.len() {
             solvers.resize_with(group.len(), PgsSolver::default);
         }
-        // Which of the group are packed, in lane order.
-        let mut packed = [0usize; PACK];
-        let mut count = 0;
-        for (j, &k) in group.iter().enumerate() {
-            let (solver, i) = (&mut solvers[j], &mut islands[k]);
+        let mut kinds = std::mem::take(&mut self.small_kinds);
+        kinds.clear();
+        for (solver, &k) in solvers.iter_mut().zip(group) {
+            let i = &mut islands[k];
             // The options as they are now (a caller may have changed them since).
             (solver.settings, solver.arch) = (self.settings, self.arch);
             let points = i.problem.len();
-            if let Err(e) = solver.begin(i.problem, settings, i.impulses, i.velocities, i.report) {
-                i.result = Err(e);
-            } else if solver.batches_only(points) && solver.batches.len() == 1 {
-                packed[count] = j;
-                count += 1;
-            } else {
-                let (it, verdict) = solver.run(points, settings, i.report);
-                i.result = solver.end(it, verdict, i.impulses, i.velocities, i.report);
+            let kind = match solver.begin(i.problem, settings, i.impulses, i.velocities, i.report) {
+                Err(e) => {
+                    i.result = Err(e);
+                    Kind::Done
+                }
+                Ok(()) if solver.batches_only(points) => {
+                    Kind::Pack(solver.batches.iter().map(Batch::width).max().unwrap_or(0))
+                }
+                Ok(()) => {
+                    let (it, verdict) = solver.run(points, settings, i.report);
+                    i.result = solver.end(it, verdict, i.impulses, i.velocities, i.report);
+                    Kind::Done
+                }
+            };
+            kinds.push(kind);
+        }
+        // In packs, lanes taken first fit in order.
+        let mut pack = Pack::default();
+        for (j, &kind) in kinds.iter().enumerate() {
+            let Kind::Pack(width) = kind else {
+                continue;
+            };
+            if !pack.add(j, width) {
+                self.run_pack(settings, islands, group, &mut solvers, &pack);
+                pack = Pack::default();
+                pack.add(j, width);
             }
         }
-        let packed = &packed[..count];
-        let halves = self.pack(&solvers, packed);
+        if pack.count > 0 {
+            self.run_pack(settings, islands, group, &mut solvers, &pack);
+        }
+        share_time(t0.elapsed().as_secs_f64(), islands, group);
+        self.lane_solvers = solvers;
+        self.small_kinds = kinds;
+    }
+
+    /// Sweeps the islands of `pack` together in this solver's buffers until each has ended,
+    /// then finishes each on its own solver.
+    fn run_pack(
+        &mut self,
+        settings: &SolverSettings,
+        islands: &mut [IslandSolve<'_>],
+        group: &[usize],
+        solvers: &mut [PgsSolver],
+        pack: &Pack,
+    ) {
+        let (split, offsets) = self.lay_out(solvers, pack);
         let outcomes = dispatch(
             self.arch,
             PackLoop {
                 pack: self,
-                halves,
-                solvers: &mut solvers,
-                packed,
+                split,
+                offsets,
+                members: pack.members(),
+                solvers,
                 islands,
                 group,
                 settings,
             },
         );
-        for (&j, (it, verdict)) in packed.iter().zip(outcomes) {
-            let i = &mut islands[group[j]];
-            i.result = solvers[j].end(it, verdict, i.impulses, i.velocities, i.report);
+        for (m, (it, verdict)) in pack.members().iter().zip(outcomes) {
+            let i = &mut islands[group[m.island]];
+            let solver = &mut solvers[m.island];
+            i.result = solver.end(it, verdict, i.impulses, i.velocities, i.report);
         }
-        let seconds = t0.elapsed().as_secs_f64();
-        let total: f64 = group
-            .iter()
-            .map(|&k| f64::from(islands[k].report.iterations.max(1)))
-            .sum();
-        for &k in group {
-            let report = &mut *islands[k].report;
-            report.seconds = seconds * f64::from(report.iterations.max(1)) / total;
-        }
-        self.lane_solvers = solvers;
     }
 
-    /// Lays the `packed` solvers' batches and velocities out in this solver's buffers: lanes
-    /// `0..LANES` in batch 0 on the first half of `vel`, the rest in batch 1 on the second,
-    /// each half ending with a dummy body and a sink for its padding lanes. Returns the
-    /// length of the first half.
-    fn pack(&mut self, solvers: &[PgsSolver], packed: &[usize]) -> usize {
+    /// Lays `pack` out in this solver's buffers: each half's batches (as many as its longest
+    /// island has) on its own velocities (its islands' in member order, then a dummy body and
+    /// a sink for the padding lanes); the first half's batches and velocities come first.
+    /// Returns where the second half's batches and velocities start, and each member's offset
+    /// into its half's velocities.
+    fn lay_out(&mut self, solvers: &[PgsSolver], pack: &Pack) -> ((usize, usize), [usize; PACK]) {
         self.batches.clear();
         self.vel.clear();
-        let mut first_half = 0;
-        for half in packed.chunks(LANES) {
-            let start = self.vel.len();
-            let mut batch = Batch::default();
-            for (lane, &j) in half.iter().enumerate() {
-                let offset = (self.vel.len() - start) as u32;
-                batch.set_lane(lane, &solvers[j].batches[0], 0, offset);
-                self.vel.extend_from_slice(&solvers[j].vel);
+        let mut offsets = [0; PACK];
+        let mut split = (0, 0);
+        for half in 0..2 {
+            let batch_start = self.batches.len();
+            let mut length = 0;
+            let mut bodies = 0;
+            for (k, m) in pack.members().iter().enumerate() {
+                if m.half == half {
+                    offsets[k] = bodies;
+                    bodies += solvers[m.island].vel.len();
+                    length = length.max(solvers[m.island].batches.len());
+                }
             }
-            let dummy = (self.vel.len() - start) as u32;
-            let padding = Batch::empty(dummy, dummy + 1);
-            for lane in half.len()..LANES {
-                batch.set_lane(lane, &padding, lane, 0);
+            let dummy = bodies as u32;
+            self.batches
+                .resize(batch_start + length, Batch::empty(dummy, dummy + 1));
+            for (k, m) in pack.members().iter().enumerate() {
+                if m.half != half {
+                    continue;
+                }
+                let solver = &solvers[m.island];
+                for (to, from) in self.batches[batch_start..].iter_mut().zip(&solver.batches) {
+                    for lane in 0..m.width {
+                        to.set_lane(m.lane + lane, from, lane, offsets[k] as u32);
+                    }
+                }
+                self.vel.extend_from_slice(&solver.vel);
             }
             self.vel.extend([Vel::default(); 2]);
-            self.batches.push(batch);
-            if first_half == 0 {
-                first_half = self.vel.len();
+            if half == 0 {
+                split = (self.batches.len(), self.vel.len());
             }
         }
-        first_half
+        (split, offsets)
     }
 }
 
 /// The iterations of a pack, compiled for the solver's instruction set: the iterations run
-/// and the verdict of each packed island, in lane order.
+/// and the verdict of each member, in member order.
 struct PackLoop<'a, 'i> {
-    /// The solver whose buffers hold the pack ([`PgsSolver::pack`]).
+    /// The solver whose buffers hold the pack ([`PgsSolver::lay_out`]).
     pack: &'a mut PgsSolver,
-    /// The length of the first half of the pack's velocities.
-    halves: usize,
+    /// Where the second half's batches and velocities start.
+    split: (usize, usize),
+    /// Each member's offset into its half's velocities.
+    offsets: [usize; PACK],
+    members: &'a [Member],
     solvers: &'a mut [PgsSolver],
-    packed: &'a [usize],
     islands: &'a mut [IslandSolve<'i>],
     group: &'a [usize],
     settings: &'a SolverSettings,
 }
 
 impl KernelOp for PackLoop<'_, '_> {
-    type Output = [(u32, crate::velocity::Verdict); PACK];
+    type Output = [(u32, Verdict); PACK];
 
     #[inline(always)]
     fn run<K: BatchKernel>(self, kernel: K) -> Self::Output {
         let mut progress: [Progress; PACK] = Default::default();
-        let n = self.packed.len();
-        let (batches, vel) = (&mut self.pack.batches, &mut self.pack.vel);
-        let (vel_a, vel_b) = vel.split_at_mut(self.halves);
-        // The lanes' offsets into their half of the velocities.
-        let mut offsets = [0usize; PACK];
-        for lane in 1..n {
-            if lane % LANES != 0 {
-                offsets[lane] = offsets[lane - 1] + self.solvers[self.packed[lane - 1]].vel.len();
-            }
+        // Islands not ended, per half.
+        let mut live = [0usize; 2];
+        for m in self.members {
+            live[m.half] += 1;
         }
+        let (batches, vel) = (&mut self.pack.batches, &mut self.pack.vel);
+        let (batches_a, batches_b) = batches.split_at_mut(self.split.0);
+        let (vel_a, vel_b) = vel.split_at_mut(self.split.1);
+        let contact = self.settings.norm == deepcontact_core::ResidualNorm::Contact;
         loop {
-            let live = |range: std::ops::Range<usize>| {
-                progress[range.start.min(n)..range.end.min(n)]
-                    .iter()
-                    .any(|p| p.ended.is_none())
-            };
-            let (live_a, live_b) = (live(0..LANES), live(LANES..PACK));
+            let (live_a, live_b) = (live[0] > 0, live[1] > 0);
             if !(live_a || live_b) {
                 break;
             }
             let (mut la, mut lb) = (LaneSweep::default(), LaneSweep::default());
-            let contact = self.settings.norm == ResidualNorm::Contact;
-            let halves = batches.len().min(1);
-            let (first, second) = batches.split_at_mut(halves);
-            match (live_a, live_b) {
-                (true, true) => {
-                    let (a, b) = (
-                        Island {
-                            batches: first,
-                            vel: vel_a,
-                            lanes: &mut la,
-                        },
-                        Island {
-                            batches: second,
-                            vel: vel_b,
-                            lanes: &mut lb,
-                        },
-                    );
-                    if contact {
-                        kernel.sweep_two::<true>(a, b);
-                    } else {
-                        kernel.sweep_two::<false>(a, b);
-                    }
-                }
-                (true, false) => sweep::<K>(kernel, contact, first, vel_a, &mut la),
-                _ => sweep::<K>(kernel, contact, second, vel_b, &mut lb),
+            let (a, b) = (
+                island(live_a, &mut *batches_a, &mut *vel_a, &mut la),
+                island(live_b, &mut *batches_b, &mut *vel_b, &mut lb),
+            );
+            if contact {
+                kernel.sweep_two::<true>(a, b);
+            } else {
+                kernel.sweep_two::<false>(a, b);
             }
-            for (lane, &j) in self.packed.iter().enumerate() {
-                if progress[lane].ended.is_some() {
+            for (k, m) in self.members.iter().enumerate() {
+                if progress[k].ended.is_some() {
                     continue;
                 }
-                let (lanes, batch, half) = if lane < LANES {
-                    (&la, &first[0], &*vel_a)
-                } else {
-                    (&lb, &second[0], &*vel_b)
-                };
-                // As `iterate` folds an island swept as one batch.
+                let lanes = if m.half == 0 { &la } else { &lb };
+                // As `iterate` folds an island swept as batches only.
                 let mut sweep = Sweep::default();
-                sweep.add_lanes(&lanes.only(lane % LANES));
-                let report = &mut *self.islands[self.group[j]].report;
-                progress[lane].judge(self.settings, &sweep, report);
-                if progress[lane].ended.is_some() {
-                    // Its impulses and its bodies' velocities as they are now (its dummy
-                    // and sink are its own solver's).
-                    let solver = &mut self.solvers[j];
-                    solver.batches[0].set_impulses(0, batch, lane % LANES);
-                    let bodies = solver.vel.len() - 2;
-                    let at = offsets[lane];
-                    solver.vel[..bodies].copy_from_slice(&half[at..at + bodies]);
+                sweep.add_span(lanes, m.lane, m.width);
+                let report: &mut SolveReport = self.islands[self.group[m.island]].report;
+                progress[k].judge(self.settings, &sweep, report);
+                if progress[k].ended.is_some() {
+                    live[m.half] -= 1;
+                    let (batches, vel) = if m.half == 0 {
+                        (&*batches_a, &*vel_a)
+                    } else {
+                        (&*batches_b, &*vel_b)
+                    };
+                    take_back(
+                        &mut self.solvers[m.island],
+                        m,
+                        batches,
+                        vel,
+                        self.offsets[k],
+                    );
                 }
             }
         }
@@ -215,18 +301,31 @@ impl KernelOp for PackLoop<'_, '_> {
     }
 }
 
-/// One sweep of the batches of one half of a pack.
+/// A half of the pack as an island of [`BatchKernel::sweep_two`]: no batches once all its
+/// islands have ended.
 #[inline(always)]
-fn sweep<K: BatchKernel>(
-    kernel: K,
-    contact: bool,
-    batches: &mut [Batch],
-    vel: &mut [Vel],
-    lanes: &mut LaneSweep,
-) {
-    if contact {
-        kernel.sweep::<true>(batches, vel, lanes);
-    } else {
-        kernel.sweep::<false>(batches, vel, lanes);
+fn island<'x>(
+    live: bool,
+    batches: &'x mut [Batch],
+    vel: &'x mut [Vel],
+    lanes: &'x mut LaneSweep,
+) -> Island<'x> {
+    Island {
+        batches: if live { batches } else { &mut [] },
+        vel,
+        lanes,
     }
+}
+
+/// Member `m`'s impulses and its bodies' velocities as they are now in its half of the pack
+/// (`batches`, `vel`; its velocities from `offset`), back into its own solver (whose dummy
+/// and sink keep their own values).
+fn take_back(solver: &mut PgsSolver, m: &Member, batches: &[Batch], vel: &[Vel], offset: usize) {
+    for (own, packed) in solver.batches.iter_mut().zip(batches) {
+        for lane in 0..m.width {
+            own.set_impulses(lane, packed, m.lane + lane);
+        }
+    }
+    let bodies = solver.vel.len() - 2;
+    solver.vel[..bodies].copy_from_slice(&vel[offset..offset + bodies]);
 }

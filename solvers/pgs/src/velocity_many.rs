@@ -1,135 +1,56 @@
-//! Small islands solved two at a time ([`VelocitySolver::solve_many`]).
+//! Small islands solved together ([`VelocitySolver::solve_many`]).
 //!
 //! A small island's sweep is a short chain of dependent operations repeated every iteration
-//! on the same few bodies, so the core idles on its latency. Two small islands share nothing:
-//! their batches run side by side ([`BatchKernel::sweep_two`]: with AVX2, the k-th batch of
-//! one beside the k-th of the other), so that the chains overlap. Each island keeps its own
-//! buffers (this solver's and its partner's), its own stop rule and iteration count, and its
-//! measures folded in its own order: each ends with the bits it would have alone.
+//! on the same few bodies, so the core idles on its latency. Small islands share nothing, so
+//! their sweeps can overlap: they are packed into the lanes of shared batches
+//! ([`crate::velocity_lanes`]). Each island keeps its own buffers (a solver of its own), its
+//! own stop rule and iteration count, and its measures folded in its own order: each ends
+//! with the bits it would have alone.
 //!
 //! [`VelocitySolver::solve_many`]: deepcontact_core::VelocitySolver::solve_many
 
-use std::time::Instant;
+use deepcontact_core::{IslandSolve, SolveReport, SolverSettings, VelocitySolver};
 
-use deepcontact_core::{IslandSolve, ResidualNorm, SolveReport, SolverSettings, VelocitySolver};
+use crate::velocity::{PgsSolver, Sweep, Verdict, judge};
 
-use crate::velocity::{
-    BatchKernel, Island, KernelOp, LaneSweep, PgsSolver, Sweep, Verdict, dispatch, judge,
-};
-use crate::velocity_lanes::PACK;
-
-/// Islands of at most this many contact points are paired: below it the per-iteration chain,
-/// not the work, sets a sweep's time (a one-point island costs 40–50 ns per pass, an island of
-/// 32 points or more ≈ 7.5 ns a point, as the largest do).
+/// Islands of at most this many contact points are solved together: below it the
+/// per-iteration chain, not the work, sets a sweep's time (alone, a one-point island costs
+/// 40–50 ns per pass, an island of 32 points or more ≈ 7.5 ns a point, as the largest do).
 pub(crate) const SMALL_POINTS: usize = 32;
 
 impl PgsSolver {
-    /// `solve_many` for PGS: one-point islands are packed into the lanes of one sweep, up to
-    /// [`PACK`] at a time ([`crate::velocity_lanes`]); other islands of up to [`SMALL_POINTS`]
-    /// points are solved in pairs (in the order they come), the others alone; each ends with
-    /// the bits of its own solve.
+    /// `solve_many` for PGS: islands of more than [`SMALL_POINTS`] points are solved alone,
+    /// the others together ([`Self::solve_small`]); each ends with the bits of its own solve.
     pub(crate) fn solve_islands(
         &mut self,
         settings: &SolverSettings,
         islands: &mut [IslandSolve<'_>],
     ) {
-        let mut waiting: Option<usize> = None;
-        let (mut group, mut grouped) = ([0usize; PACK], 0);
-        for k in 0..islands.len() {
-            if islands[k].problem.points.len() == 1 {
-                group[grouped] = k;
-                grouped += 1;
-                if grouped == PACK {
-                    self.solve_packed(settings, islands, &group);
-                    grouped = 0;
-                }
-                continue;
-            }
-            if islands[k].problem.points.len() > SMALL_POINTS {
-                let i = &mut islands[k];
+        let mut small = std::mem::take(&mut self.small_islands);
+        small.clear();
+        for (k, i) in islands.iter_mut().enumerate() {
+            if i.problem.points.len() > SMALL_POINTS {
                 i.result = self.solve(i.problem, settings, i.impulses, i.velocities, i.report);
-                continue;
-            }
-            match waiting.take() {
-                None => waiting = Some(k),
-                Some(j) => {
-                    let (first, rest) = islands.split_at_mut(k);
-                    self.solve_pair(settings, &mut first[j], &mut rest[0]);
-                }
+            } else {
+                small.push(k);
             }
         }
-        if grouped > 0 {
-            self.solve_packed(settings, islands, &group[..grouped]);
+        if !small.is_empty() {
+            self.solve_small(settings, islands, &small);
         }
-        if let Some(j) = waiting {
-            let i = &mut islands[j];
-            i.result = self.solve(i.problem, settings, i.impulses, i.velocities, i.report);
-        }
+        self.small_islands = small;
     }
 
     /// Whether this solver's prepared island is swept as batches only, in the plain plan.
     pub(crate) fn batches_only(&self, points: usize) -> bool {
         !self.plans_chunked(points) && !self.segments.is_empty() && self.scratch.is_empty()
     }
-
-    /// Solves `a` on this solver and `b` on its partner: side by side when both are swept as
-    /// batches only, else one after the other. The pair's time is shared out between the two
-    /// reports in proportion to their point-iterations.
-    fn solve_pair(
-        &mut self,
-        settings: &SolverSettings,
-        a: &mut IslandSolve<'_>,
-        b: &mut IslandSolve<'_>,
-    ) {
-        let t0 = Instant::now();
-        let mut partner = self.partner.take().unwrap_or_default();
-        // The options as they are now (a caller may have changed them since the last pair).
-        (partner.settings, partner.arch) = (self.settings, self.arch);
-        let began = (
-            self.begin(a.problem, settings, a.impulses, a.velocities, a.report),
-            partner.begin(b.problem, settings, b.impulses, b.velocities, b.report),
-        );
-        let (pa, pb) = (a.problem.len(), b.problem.len());
-        let runs = match began {
-            (Ok(()), Ok(())) if self.batches_only(pa) && partner.batches_only(pb) => {
-                let (ra, rb) = dispatch(
-                    self.arch,
-                    PairLoop {
-                        a: self,
-                        b: &mut partner,
-                        settings,
-                        report_a: a.report,
-                        report_b: b.report,
-                    },
-                );
-                (Ok(ra), Ok(rb))
-            }
-            (ba, bb) => (
-                ba.map(|()| self.run(pa, settings, a.report)),
-                bb.map(|()| partner.run(pb, settings, b.report)),
-            ),
-        };
-        a.result = runs
-            .0
-            .and_then(|(it, v)| self.end(it, v, a.impulses, a.velocities, a.report));
-        b.result = runs
-            .1
-            .and_then(|(it, v)| partner.end(it, v, b.impulses, b.velocities, b.report));
-        self.partner = Some(partner);
-        let seconds = t0.elapsed().as_secs_f64();
-        let (wa, wb) = (
-            (pa as f64) * f64::from(a.report.iterations.max(1)),
-            (pb as f64) * f64::from(b.report.iterations.max(1)),
-        );
-        a.report.seconds = seconds * wa / (wa + wb);
-        b.report.seconds = seconds * wb / (wa + wb);
-    }
 }
 
-/// Where one island of a pair stands: iterations run, and its verdict once it has ended.
+/// Where one island of a pack stands: iterations run, and its verdict once it has ended.
 #[derive(Default)]
 pub(crate) struct Progress {
-    pub(crate) it: u32,
+    it: u32,
     pub(crate) ended: Option<Verdict>,
 }
 
@@ -150,96 +71,17 @@ impl Progress {
         }
     }
 
-    /// One iteration of `solver` alone.
-    #[inline(always)]
-    fn advance<K: BatchKernel>(
-        &mut self,
-        solver: &mut PgsSolver,
-        settings: &SolverSettings,
-        report: &mut SolveReport,
-        kernel: K,
-    ) {
-        let sweep = if settings.norm == ResidualNorm::Contact {
-            solver.iterate::<true, K>(kernel)
-        } else {
-            solver.iterate::<false, K>(kernel)
-        };
-        self.judge(settings, &sweep, report);
-    }
-
     /// The iterations run and how the island ended (the cap: `Continue`).
     pub(crate) fn outcome(&self) -> (u32, Verdict) {
         (self.it, self.ended.unwrap_or(Verdict::Continue))
     }
 }
 
-/// One iteration of both islands of a pair, side by side; their sweeps' measures.
-#[inline(always)]
-fn iterate_two<const CONTACT: bool, K: BatchKernel>(
-    a: &mut PgsSolver,
-    b: &mut PgsSolver,
-    kernel: K,
-) -> (Sweep, Sweep) {
-    let (mut la, mut lb) = (LaneSweep::default(), LaneSweep::default());
-    kernel.sweep_two::<CONTACT>(
-        Island {
-            batches: &mut a.batches,
-            vel: &mut a.vel,
-            lanes: &mut la,
-        },
-        Island {
-            batches: &mut b.batches,
-            vel: &mut b.vel,
-            lanes: &mut lb,
-        },
-    );
-    // As `iterate` folds an island swept as batches only.
-    let (mut sa, mut sb) = (Sweep::default(), Sweep::default());
-    sa.add_lanes(&la);
-    sb.add_lanes(&lb);
-    (sa, sb)
-}
-
-/// The iterations of a pair, compiled for the solver's instruction set.
-struct PairLoop<'a> {
-    a: &'a mut PgsSolver,
-    b: &'a mut PgsSolver,
-    settings: &'a SolverSettings,
-    report_a: &'a mut SolveReport,
-    report_b: &'a mut SolveReport,
-}
-
-impl KernelOp for PairLoop<'_> {
-    type Output = ((u32, Verdict), (u32, Verdict));
-
-    #[inline(always)]
-    fn run<K: BatchKernel>(self, kernel: K) -> Self::Output {
-        let settings = self.settings;
-        let (mut a, mut b) = (Progress::default(), Progress::default());
-        loop {
-            match (a.ended.is_none(), b.ended.is_none()) {
-                (true, true) => {
-                    let (sa, sb) = if settings.norm == ResidualNorm::Contact {
-                        iterate_two::<true, K>(self.a, self.b, kernel)
-                    } else {
-                        iterate_two::<false, K>(self.a, self.b, kernel)
-                    };
-                    a.judge(settings, &sa, self.report_a);
-                    b.judge(settings, &sb, self.report_b);
-                }
-                (true, false) => a.advance(self.a, settings, self.report_a, kernel),
-                (false, true) => b.advance(self.b, settings, self.report_b, kernel),
-                (false, false) => break,
-            }
-        }
-        (a.outcome(), b.outcome())
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use deepcontact_core::{
-        CarriedWarmStart, ContactProblem, Impulse, Real, Velocity, WorldSettings, scene,
+        CarriedWarmStart, ContactProblem, Impulse, Real, ResidualNorm, Velocity, WorldSettings,
+        scene,
     };
 
     use super::*;
