@@ -7,7 +7,7 @@ use numpy::{IntoPyArray, PyArray1, PyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
 /// An owned copy of a [`WarmStartContext`], taken without the GIL and turned into NumPy
-/// arrays with it ([`IslandData::to_python`]).
+/// arrays with it ([`IslandData::into_python`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct IslandData {
     step: u64,

@@ -7,7 +7,7 @@
 //! the next step. After each solve this provider runs `sweeps` more sweeps, measures ρ from
 //! the last two increments (Aitken's Δ² along the slow mode) and stores
 //! `λ + Δλ_last ρ / (1 − ρ)`, projected onto the friction cone, under each point's
-//! [`ContactId`]; the next step starts from it (carried impulses where a point has none).
+//! [`ContactId`](deepcontact_core::ContactId); the next step starts from it (carried impulses where a point has none).
 
 use deepcontact_core::{
     Impulse, Observation, Real, SolveReport, SolverSettings, SpecError, Velocity, VelocitySolver,
