@@ -265,6 +265,28 @@ fn bad_bodies_and_settings_get_typed_errors_naming_the_field() {
             "{err}"
         );
     }
+    for (settings, setting) in [
+        (
+            WorldSettings {
+                island_threads: 0,
+                ..WorldSettings::default()
+            },
+            "island_threads",
+        ),
+        (
+            WorldSettings {
+                collide_threads: 0,
+                ..WorldSettings::default()
+            },
+            "collide_threads",
+        ),
+    ] {
+        let err = World::new(settings).unwrap_err();
+        assert!(
+            matches!(err, CoreError::InvalidSetting { name, .. } if name == setting),
+            "{err}"
+        );
+    }
     let s = SolverSettings {
         max_iterations: 0,
         ..SolverSettings::default()
