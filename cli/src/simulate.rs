@@ -34,8 +34,9 @@ pub struct SimulateArgs {
     /// Draw the final state (bodies, walls, contact normals) to this PNG.
     #[arg(long)]
     pub render: Option<std::path::PathBuf>,
-    /// Threads (pgs only): islands solved side by side, and one large island's velocity and
-    /// position solve shared (from 2048 contact points); results bit-identical for any count.
+    /// Threads (pgs only): islands solved side by side, the narrow phase's pairs shared, and
+    /// one large island's velocity and position solve shared (from 2048 contact points);
+    /// results bit-identical for any count.
     #[arg(long, default_value_t = 1)]
     pub threads: usize,
     /// Print a table row every this many steps.
