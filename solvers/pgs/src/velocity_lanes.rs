@@ -78,10 +78,12 @@ impl Pack {
 }
 
 /// The time of a group shared out between its islands, in proportion to their
-/// point-iterations.
+/// point-iterations (an island without points or iterations counts as one of each, so the
+/// shares are finite).
 fn share_time(seconds: f64, islands: &mut [IslandSolve<'_>], group: &[usize]) {
-    let weight =
-        |i: &IslandSolve<'_>| (i.problem.len() as f64) * f64::from(i.report.iterations.max(1));
+    let weight = |i: &IslandSolve<'_>| {
+        (i.problem.len().max(1) as f64) * f64::from(i.report.iterations.max(1))
+    };
     let total: f64 = group.iter().map(|&k| weight(&islands[k])).sum();
     for &k in group {
         let w = weight(&islands[k]);

@@ -304,6 +304,24 @@ mod tests {
     }
 
     #[test]
+    fn regression_empty_islands_shared_a_nan_time() {
+        // The group's time was shared in proportion to points × iterations: islands without
+        // points made it 0 / 0.
+        let empty = ContactProblem::new();
+        let (mut i0, mut i1) = (Vec::new(), Vec::new());
+        let (mut v0, mut v1) = (Vec::new(), Vec::new());
+        let (mut r0, mut r1) = (SolveReport::default(), SolveReport::default());
+        let mut islands = [
+            IslandSolve::new(&empty, &mut i0, &mut v0, &mut r0),
+            IslandSolve::new(&empty, &mut i1, &mut v1, &mut r1),
+        ];
+        PgsSolver::new().solve_many(&SolverSettings::default(), &mut islands);
+        for island in &islands {
+            assert!(island.report.seconds.is_finite() && island.report.seconds >= 0.0);
+        }
+    }
+
+    #[test]
     fn regression_pairs_kept_the_options_of_their_first_solve() {
         // The partner solver was made with the options of the first pair and kept them: a
         // later change (here: starts taken as given, outside the friction cone) reached only
