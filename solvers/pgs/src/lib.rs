@@ -20,8 +20,8 @@
 //! order, so the result is bit-identical for any thread count. Smaller islands run on the
 //! calling thread; given all of a step's islands at once
 //! ([`VelocitySolver::solve_many`](deepcontact_core::VelocitySolver::solve_many), as the world
-//! does), islands of up to 32 points are swept in pairs, batch beside batch, each with its own
-//! stop rule and to the bits of its own solve.
+//! does), islands of up to 32 points are packed into the lanes of shared batches, up to eight
+//! islands a sweep, each with its own stop rule and to the bits of its own solve.
 //!
 //! **Instruction set.** The velocity sweep loop is compiled twice, for the x86-64 baseline and
 //! for AVX2 + FMA, and the solver picks one at run time (`pulp::Arch`, detected when the solver

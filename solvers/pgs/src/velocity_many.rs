@@ -192,14 +192,14 @@ mod tests {
     }
 
     #[test]
-    fn islands_solved_in_pairs_end_with_the_bits_of_their_own_solves() {
+    fn small_islands_solved_together_end_with_the_bits_of_their_own_solves() {
         let steps = islands_by_step(60);
         let start = |p: &ContactProblem| -> Vec<Impulse> {
             (0..p.len())
                 .map(|i| Impulse::new(0.02 * (i % 5) as Real, 0.003 * (i % 3) as Real))
                 .collect()
         };
-        let mut paired_steps = 0;
+        let mut shared_steps = 0;
         for stop in [
             SolverSettings::default(),
             SolverSettings {
@@ -216,7 +216,7 @@ mod tests {
             let (mut many, mut alone) = (PgsSolver::new(), PgsSolver::new());
             for problems in &steps {
                 let small = problems.iter().filter(|p| p.len() <= SMALL_POINTS).count();
-                paired_steps += usize::from(small >= 2);
+                shared_steps += usize::from(small >= 2);
                 let many_bits = solved_many(&mut many, problems, &stop, start);
                 let alone_bits = solved_alone(&mut alone, problems, &stop, start);
                 for (k, p) in problems.iter().enumerate() {
@@ -230,7 +230,10 @@ mod tests {
                 }
             }
         }
-        assert!(paired_steps > 50, "{paired_steps} steps with a pair");
+        assert!(
+            shared_steps > 50,
+            "{shared_steps} steps with two small islands"
+        );
     }
 
     #[test]
@@ -325,7 +328,7 @@ mod tests {
     fn regression_pairs_kept_the_options_of_their_first_solve() {
         // The partner solver was made with the options of the first pair and kept them: a
         // later change (here: starts taken as given, outside the friction cone) reached only
-        // one island of each pair.
+        // one island of each pair. The packs' solvers take the options of every call too.
         let problems = islands_by_step(60)
             .into_iter()
             .find(|p| p.iter().filter(|p| p.len() <= SMALL_POINTS).count() >= 2)
@@ -343,7 +346,7 @@ mod tests {
     }
 
     #[test]
-    fn a_failing_island_of_a_pair_leaves_its_partner_solved() {
+    fn a_failing_small_island_leaves_the_others_solved() {
         let problems = islands_by_step(60)
             .into_iter()
             .find(|p| p.iter().filter(|p| p.len() <= SMALL_POINTS).count() >= 2);
