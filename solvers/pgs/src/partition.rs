@@ -31,14 +31,12 @@ pub(crate) struct Partition {
     pub(crate) links: Vec<(u32, u32)>,
     /// Per domain, its run of `links`.
     pub(crate) link_ranges: Vec<Range<usize>>,
+    /// The number of the island's bodies.
+    bodies: usize,
     /// The first body of each domain.
     starts: Vec<u32>,
     /// Scratch: the parts of each body, as bits.
     used: Vec<u64>,
-    /// Each body's slot in the part last given by [`Self::slots`] (`u32::MAX`: none).
-    slot: Vec<u32>,
-    /// The part whose slots `slot` holds.
-    slotted: Option<usize>,
 }
 
 impl Partition {
@@ -53,6 +51,7 @@ impl Partition {
     ) {
         let n = n.clamp(1, MAX_DOMAINS);
         self.n = n;
+        self.bodies = bodies;
         // Cut where the constraints counted at their first movable body reach k / n of all.
         let key = |[(a, ma), (b, mb)]: Ends| match (ma, mb) {
             (true, true) => a.min(b),
@@ -95,9 +94,6 @@ impl Partition {
             let bit = 1u64 << p;
             list.extend((0..bodies as u32).filter(|&b| self.used[b as usize] & bit != 0));
         }
-        self.slot.clear();
-        self.slot.resize(bodies, u32::MAX);
-        self.slotted = None;
         self.link_cut(count, &ends);
     }
 
@@ -118,20 +114,47 @@ impl Partition {
         }
     }
 
-    /// Each island body's slot in part `p` (`u32::MAX` for the bodies it does not hold).
-    pub(crate) fn slots(&mut self, p: usize) -> &[u32] {
-        if self.slotted != Some(p) {
-            if let Some(q) = self.slotted {
-                for &b in &self.bodies_of[q] {
-                    self.slot[b as usize] = u32::MAX;
-                }
-            }
-            for (s, &b) in self.bodies_of[p].iter().enumerate() {
-                self.slot[b as usize] = s as u32;
-            }
-            self.slotted = Some(p);
+    /// Each island body's slot in part `p`, written into `slot` (`u32::MAX` for the bodies
+    /// the part does not hold).
+    pub(crate) fn slots<'a>(&self, p: usize, slot: &'a mut Vec<u32>) -> &'a [u32] {
+        slot.clear();
+        slot.resize(self.bodies, u32::MAX);
+        for (s, &b) in self.bodies_of[p].iter().enumerate() {
+            slot[b as usize] = s as u32;
         }
-        &self.slot
+        slot
+    }
+
+    /// Runs `build(p, item, slot)` for the `p`-th item of `items` (one per part) on up to
+    /// `threads` threads (≥ 1), part `p` on thread `p mod threads`, each thread with a
+    /// scratch `slot` of its own for [`Self::slots`]. What `build` makes of an item must not
+    /// depend on the thread that runs it.
+    pub(crate) fn build_parts<T: Send>(
+        items: Vec<T>,
+        threads: usize,
+        build: &(dyn Fn(usize, T, &mut Vec<u32>) + Sync),
+    ) {
+        let threads = threads.clamp(1, items.len().max(1));
+        let mut shares: Vec<Vec<(usize, T)>> = (0..threads).map(|_| Vec::new()).collect();
+        for (p, item) in items.into_iter().enumerate() {
+            shares[p % threads].push((p, item));
+        }
+        let run = |share: Vec<(usize, T)>| {
+            let mut slot = Vec::new();
+            for (p, item) in share {
+                build(p, item, &mut slot);
+            }
+        };
+        let mut shares = shares.into_iter();
+        let first = shares.next();
+        std::thread::scope(|scope| {
+            for share in shares {
+                scope.spawn(move || run(share));
+            }
+            if let Some(share) = first {
+                run(share);
+            }
+        });
     }
 
     /// The cut's movable bodies, linked to their slots in their domains.
@@ -214,7 +237,7 @@ mod tests {
                 assert_eq!(p.bodies_of[3][s as usize], p.bodies_of[d][l as usize]);
             }
         }
-        let slots = p.slots(1).to_vec();
+        let slots = p.slots(1, &mut Vec::new()).to_vec();
         for (s, &b) in p.bodies_of[1].iter().enumerate() {
             assert_eq!(slots[b as usize], s as u32);
         }

@@ -422,7 +422,7 @@ impl PositionSolver for PgsPositionSolver {
             let threads = crate::sync::effective_threads(self.settings.threads);
             if self.settings.domains > 0 {
                 self.domains
-                    .build(self.settings.domains, &self.rows, &self.renumbered);
+                    .build(self.settings.domains, threads, &self.rows, &self.renumbered);
                 self.domains
                     .solve(threads, settings, &mut self.renumbered, &mut report);
             } else {

@@ -26,33 +26,28 @@ pub(crate) struct PositionDomains {
 
 impl PositionDomains {
     /// Cuts the island (`rows` and `poses`, bodies in Z-order) into `n` domains (1 to
-    /// [`MAX_DOMAINS`](crate::MAX_DOMAINS), clamped) and the cut.
-    pub(crate) fn build(&mut self, n: usize, rows: &[PosRow], poses: &[Pose]) {
+    /// [`MAX_DOMAINS`](crate::MAX_DOMAINS), clamped) and the cut, the parts built side by side
+    /// on up to `threads` threads (≥ 1).
+    pub(crate) fn build(&mut self, n: usize, threads: usize, rows: &[PosRow], poses: &[Pose]) {
         self.partition
             .build(n, poses.len(), rows.len(), |k| rows[k].ends());
         let n = self.partition.n;
         self.rows.resize_with(n + 1, Vec::new);
         self.poses.resize_with(n + 1, Vec::new);
-        for p in 0..=n {
-            let own = &mut self.poses[p];
+        let partition = &self.partition;
+        let items: Vec<_> = self.rows.iter_mut().zip(&mut self.poses).collect();
+        Partition::build_parts(items, threads, &|p, (list, own), slot| {
             own.clear();
-            own.extend(
-                self.partition.bodies_of[p]
-                    .iter()
-                    .map(|&b| poses[b as usize]),
-            );
-            let part_of = std::mem::take(&mut self.partition.part_of);
-            let slot = self.partition.slots(p);
-            let list = &mut self.rows[p];
+            own.extend(partition.bodies_of[p].iter().map(|&b| poses[b as usize]));
+            let slot = partition.slots(p, slot);
             list.clear();
             list.extend(
                 rows.iter()
-                    .zip(&part_of)
+                    .zip(&partition.part_of)
                     .filter(|&(_, &q)| q as usize == p)
                     .map(|(row, _)| row.renumbered(slot)),
             );
-            self.partition.part_of = part_of;
-        }
+        });
     }
 
     /// Runs the pass on up to `threads` threads (≥ 1; no more than the domains) under the stop

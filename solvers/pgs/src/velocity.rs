@@ -1242,6 +1242,7 @@ impl PgsSolver {
         if self.plans_domains(points) {
             self.domains.build(
                 self.settings.domains,
+                crate::sync::effective_threads(self.settings.threads),
                 &self.manifolds,
                 &self.rows,
                 &self.vel,
@@ -1738,9 +1739,11 @@ mod tests {
             ..PgsSettings::default()
         };
         same_bits_on_one_to_five_threads(settings, |solver, threads, stop, report| {
+            // The parts built on the same threads as the sweep.
             let d = &mut solver.domains;
             d.build(
                 4,
+                threads,
                 &solver.manifolds,
                 &solver.rows,
                 &solver.vel,
@@ -1811,6 +1814,7 @@ mod tests {
             let d = &mut solver.domains;
             d.build(
                 n,
+                n % 3 + 1,
                 &solver.manifolds,
                 &solver.rows,
                 &solver.vel,

@@ -25,10 +25,12 @@ pub(crate) struct Domains {
 impl Domains {
     /// Cuts the island (`manifolds`, `rows`, `vel`: the solver's, after the warm start, bodies
     /// in Z-order) into `n` domains (1 to [`MAX_DOMAINS`](crate::MAX_DOMAINS), clamped) and
-    /// the cut, and builds each part's sweep plan.
+    /// the cut, and builds each part's sweep plan, the parts side by side on up to `threads`
+    /// threads (≥ 1; a part's plan does not depend on the thread).
     pub(crate) fn build(
         &mut self,
         n: usize,
+        threads: usize,
         manifolds: &[Manifold],
         rows: &[Row],
         vel: &[Vel],
@@ -41,59 +43,18 @@ impl Domains {
         let n = self.partition.n;
         self.parts.resize_with(n + 1, PgsSolver::default);
         self.rows_of.resize_with(n + 1, Vec::new);
-        for p in 0..=n {
-            self.build_part(p, manifolds, rows, vel, settings);
-        }
-    }
-
-    /// Builds part `p`: its bodies' velocities, its rows, its manifolds renumbered, then its
-    /// colours and batches.
-    fn build_part(
-        &mut self,
-        p: usize,
-        manifolds: &[Manifold],
-        rows: &[Row],
-        vel: &[Vel],
-        settings: PgsSettings,
-    ) {
-        let part = &mut self.parts[p];
-        part.settings = PgsSettings {
-            threads: 1,
-            parallel_min_points: usize::MAX,
-            ..settings
+        let partition = &self.partition;
+        let items: Vec<_> = self.parts.iter_mut().zip(&mut self.rows_of).collect();
+        let island = Island {
+            manifolds,
+            rows,
+            vel,
+            settings,
         };
-        let bodies = &self.partition.bodies_of[p];
-        part.vel.clear();
-        part.vel.extend(bodies.iter().map(|&b| vel[b as usize]));
-        let body_count = bodies.len();
-        let part_of = std::mem::take(&mut self.partition.part_of);
-        let slot = self.partition.slots(p);
-        let rows_of = &mut self.rows_of[p];
-        rows_of.clear();
-        part.rows.clear();
-        part.manifolds.clear();
-        for (m, &q) in manifolds.iter().zip(&part_of) {
-            if q as usize != p {
-                continue;
-            }
-            let local = Manifold {
-                a: slot[m.a as usize],
-                b: slot[m.b as usize],
-                start: part.rows.len() as u32,
-                ..*m
-            };
-            let range = m.start as usize..(m.start + m.count) as usize;
-            rows_of.extend(range.clone().map(|r| r as u32));
-            part.rows.extend_from_slice(&rows[range]);
-            part.manifolds.push(local);
-        }
-        self.partition.part_of = part_of;
-        // Neighbours next to each other within a colour: the bodies are in Z-order. (The
-        // start makes the key unique, so the unstable sort is deterministic.)
-        part.manifolds
-            .sort_unstable_by_key(|m| (m.a.min(m.b), m.a.max(m.b), m.start));
-        part.reset_plan();
-        part.colour(body_count, None);
+        Partition::build_parts(items, threads, &|p, (part, rows_of), slot| {
+            let slot = partition.slots(p, slot);
+            build_part(p, part, rows_of, partition, slot, &island);
+        });
     }
 
     /// Copies the parts' impulses back into the island's rows and the domains' velocities
@@ -152,6 +113,65 @@ impl Domains {
         }
         last
     }
+}
+
+/// The island that [`Domains::build`] cuts into parts.
+struct Island<'a> {
+    manifolds: &'a [Manifold],
+    rows: &'a [Row],
+    vel: &'a [Vel],
+    settings: PgsSettings,
+}
+
+/// Builds part `p` of `partition` of `island` into `part` (`slot`: each island body's slot
+/// in it): its bodies' velocities, its rows (`rows_of`: the island's row of each), its
+/// manifolds renumbered, then its colours and batches.
+fn build_part(
+    p: usize,
+    part: &mut PgsSolver,
+    rows_of: &mut Vec<u32>,
+    partition: &Partition,
+    slot: &[u32],
+    island: &Island<'_>,
+) {
+    let Island {
+        manifolds,
+        rows,
+        vel,
+        settings,
+    } = *island;
+    part.settings = PgsSettings {
+        threads: 1,
+        parallel_min_points: usize::MAX,
+        ..settings
+    };
+    let bodies = &partition.bodies_of[p];
+    part.vel.clear();
+    part.vel.extend(bodies.iter().map(|&b| vel[b as usize]));
+    rows_of.clear();
+    part.rows.clear();
+    part.manifolds.clear();
+    for (m, &q) in manifolds.iter().zip(&partition.part_of) {
+        if q as usize != p {
+            continue;
+        }
+        let local = Manifold {
+            a: slot[m.a as usize],
+            b: slot[m.b as usize],
+            start: part.rows.len() as u32,
+            ..*m
+        };
+        let range = m.start as usize..(m.start + m.count) as usize;
+        rows_of.extend(range.clone().map(|r| r as u32));
+        part.rows.extend_from_slice(&rows[range]);
+        part.manifolds.push(local);
+    }
+    // Neighbours next to each other within a colour: the bodies are in Z-order. (The start
+    // makes the key unique, so the unstable sort is deterministic.)
+    part.manifolds
+        .sort_unstable_by_key(|m| (m.a.min(m.b), m.a.max(m.b), m.start));
+    part.reset_plan();
+    part.colour(bodies.len(), None);
 }
 
 /// A part of the velocity sweep: its solver, swept in the instruction set chosen at run time.
