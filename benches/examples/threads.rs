@@ -7,7 +7,8 @@
 //! pass likewise in domains or, with `--domains 0`, in shared colours), as `simulate
 //! --threads` runs. The pile is settled with the chunked plans (the snapshot of the earlier
 //! measurements). Prints ms per step (whole step, velocity solve, the rest) per thread
-//! count and the ratio T threads / 1 thread, and checks that every run ends in the same
+//! count and the ratio T threads / 1 thread (of the medians, of each round's pair, and of
+//! the fastest rounds), and checks that every run ends in the same
 //! bits (positions, velocities) whatever the thread count.
 //!
 //! ```sh
@@ -250,5 +251,26 @@ fn main() -> Result<(), String> {
             step / plain
         );
     }
+    // Round by round: the runs of a round follow each other within a second, so they share
+    // the machine's state more often than the medians of whole columns do.
+    let paired: Vec<f64> = runs[2]
+        .iter()
+        .zip(&runs[1])
+        .map(|(many, one)| many.wall / one.wall)
+        .collect();
+    let fastest = |rs: &[Run]| rs.iter().map(|r| r.wall).fold(f64::INFINITY, f64::min);
+    let (lo, hi) = paired
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &r| {
+            (lo.min(r), hi.max(r))
+        });
+    println!(
+        "\n{} threads / 1 thread, round by round: median {:.3} ({lo:.3}–{hi:.3}, {} rounds); \
+         fastest round / fastest round: {:.3}",
+        o.threads,
+        median(paired.clone()),
+        paired.len(),
+        fastest(&runs[2]) / fastest(&runs[1]),
+    );
     Ok(())
 }

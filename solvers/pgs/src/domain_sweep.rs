@@ -16,7 +16,7 @@
 use std::sync::{Mutex, MutexGuard, PoisonError};
 
 use crate::partition::Partition;
-use crate::sync::{phase_starts, run_phased};
+use crate::sync::{Padded, phase_starts, run_phased};
 
 /// One part of a partition as the loop sweeps it.
 pub(crate) trait Part: Send {
@@ -55,25 +55,28 @@ pub(crate) fn sweep_parts<P: Part>(
     if threads.min(n) <= 1 {
         return sweep_on_this_thread(parts, partition, max_iterations, stop);
     }
-    let mail: Vec<Mutex<Vec<P::Value>>> = ranges
+    // Each part's lock, mailbox and measures on cache lines of their own: the threads that
+    // sweep neighbouring parts do not pass lines back and forth.
+    let mail: Vec<Padded<Mutex<Vec<P::Value>>>> = ranges
         .iter()
         .zip(parts.iter())
         .map(|(range, part)| {
-            Mutex::new(
+            Padded(Mutex::new(
                 links[range.clone()]
                     .iter()
                     .map(|&(_, l)| part.get(l))
                     .collect(),
-            )
+            ))
         })
         .collect();
-    let parts: Vec<Mutex<&mut P>> = parts.iter_mut().map(Mutex::new).collect();
-    let slots: [Vec<Mutex<P::Measures>>; 2] =
-        [0, 1].map(|_| (0..=n).map(|_| Mutex::default()).collect());
+    let parts: Vec<Padded<Mutex<&mut P>>> =
+        parts.iter_mut().map(|p| Padded(Mutex::new(p))).collect();
+    let slots: [Vec<Padded<Mutex<P::Measures>>>; 2] =
+        [0, 1].map(|_| (0..=n).map(|_| Padded::default()).collect());
     let done = Mutex::new(Vec::with_capacity(max_iterations.min(4096) as usize));
     let process = |item: usize, parity: usize| {
         let m = if item < n {
-            let (mut part, mut mail) = (lock(&parts[item]), lock(&mail[item]));
+            let (mut part, mut mail) = (lock(&parts[item].0), lock(&mail[item].0));
             let links = &links[ranges[item].clone()];
             for (v, &(_, l)) in mail.iter().zip(links) {
                 part.set(l, *v);
@@ -84,26 +87,26 @@ pub(crate) fn sweep_parts<P: Part>(
             }
             m
         } else {
-            let mut cut = lock(&parts[n]);
+            let mut cut = lock(&parts[n].0);
             for (range, mail) in ranges.iter().zip(&mail) {
-                for (v, &(s, _)) in lock(mail).iter().zip(&links[range.clone()]) {
+                for (v, &(s, _)) in lock(&mail.0).iter().zip(&links[range.clone()]) {
                     cut.set(s, *v);
                 }
             }
             let m = cut.sweep();
             for (range, mail) in ranges.iter().zip(&mail) {
-                for (v, &(s, _)) in lock(mail).iter_mut().zip(&links[range.clone()]) {
+                for (v, &(s, _)) in lock(&mail.0).iter_mut().zip(&links[range.clone()]) {
                     *v = cut.get(s);
                 }
             }
             m
         };
-        *lock(&slots[parity][item]) = m;
+        *lock(&slots[parity][item].0) = m;
     };
     let judge = |it: u32, parity: usize| {
         let mut all = P::Measures::default();
         for slot in &slots[parity] {
-            P::fold(&mut all, &lock(slot));
+            P::fold(&mut all, &lock(&slot.0));
         }
         lock(&done).push(all);
         stop(it, &all)
@@ -117,8 +120,8 @@ pub(crate) fn sweep_parts<P: Part>(
     );
     // The cut's last values into their domains.
     for ((part, mail), range) in parts.iter().zip(&mail).zip(ranges) {
-        let mut part = lock(part);
-        for (v, &(_, l)) in lock(mail).iter().zip(&links[range.clone()]) {
+        let mut part = lock(&part.0);
+        for (v, &(_, l)) in lock(&mail.0).iter().zip(&links[range.clone()]) {
             part.set(l, *v);
         }
     }

@@ -93,7 +93,8 @@ pub(crate) fn run_phased(
             v
         })
         .collect();
-    let cursors: Vec<Padded> = (0..threads).map(|_| Padded(AtomicUsize::new(0))).collect();
+    let cursors: Vec<Padded<AtomicUsize>> =
+        (0..threads).map(|_| Padded(AtomicUsize::new(0))).collect();
     let (done, judged) = (Padded(AtomicUsize::new(0)), Padded(AtomicUsize::new(0)));
     let stopped = AtomicBool::new(false);
     // Claims one item of segment t in phase p of iteration it, if one is left.
@@ -147,10 +148,11 @@ pub(crate) fn run_phased(
     judged.0.load(Mem::Acquire) as u32
 }
 
-/// A counter on a cache line of its own (two lines: adjacent-line prefetch), so that
-/// claiming, completing and judging do not contend for one line.
+/// A value on cache lines of its own (two lines: adjacent-line prefetch), so that threads
+/// that write neighbouring values (counters, locks, measures) do not contend for one line.
 #[repr(align(128))]
-struct Padded(AtomicUsize);
+#[derive(Debug, Default)]
+pub(crate) struct Padded<T>(pub(crate) T);
 
 /// Threads to run for a request of `requested`: no more than the cores this process may
 /// use. The result never depends on it.
