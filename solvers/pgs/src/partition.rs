@@ -248,6 +248,29 @@ mod tests {
     }
 
     #[test]
+    fn build_parts_visits_every_part_once_with_its_own_item_on_any_thread_count() {
+        // 7 parts of a chain cut into 6 domains; each build writes its part's slots into its
+        // item, which must match the slots made on this thread.
+        let ends = |c: usize| [(c as u32, true), (c as u32 + 1, true)];
+        let mut p = Partition::default();
+        p.build(6, 20, 19, ends);
+        let expected: Vec<Vec<u32>> = (0..=6)
+            .map(|q| p.slots(q, &mut Vec::new()).to_vec())
+            .collect();
+        for threads in 1..=9 {
+            let mut made: Vec<(usize, Vec<u32>)> = vec![(usize::MAX, Vec::new()); 7];
+            let items: Vec<_> = made.iter_mut().collect();
+            Partition::build_parts(items, threads, &|q, item, slot| {
+                *item = (q, p.slots(q, slot).to_vec());
+            });
+            for (q, (seen, slots)) in made.iter().enumerate() {
+                assert_eq!(*seen, q, "{threads} threads");
+                assert_eq!(slots, &expected[q], "part {q}, {threads} threads");
+            }
+        }
+    }
+
+    #[test]
     fn one_domain_leaves_an_empty_cut() {
         let ends = |c: usize| [(c as u32, true), (c as u32 + 1, true)];
         let mut p = Partition::default();
