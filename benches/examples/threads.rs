@@ -162,10 +162,8 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
-fn main() -> Result<(), String> {
-    let Some(o) = parse()? else {
-        return Ok(());
-    };
+/// The pile of `o.bodies` circles settled for `o.settle` steps.
+fn settled_pile(o: &Options) -> Result<World, String> {
     let t0 = Instant::now();
     let scene = scene::pile(SEED, o.bodies).map_err(|e| e.to_string())?;
     let mut world = scene.build(settle_world(50)).map_err(|e| e.to_string())?;
@@ -192,6 +190,34 @@ fn main() -> Result<(), String> {
         o.settle,
         t0.elapsed().as_secs_f64()
     );
+    Ok(world)
+}
+
+/// The ratio of `many` (runs on `threads` threads) to `one` (one thread) round by round, and
+/// of their fastest rounds: the runs of a round follow each other within a second, so they
+/// share the machine's state more often than the medians of whole columns do.
+fn print_rounds(threads: usize, many: &[Run], one: &[Run]) {
+    let paired: Vec<f64> = many.iter().zip(one).map(|(m, o)| m.wall / o.wall).collect();
+    let fastest = |rs: &[Run]| rs.iter().map(|r| r.wall).fold(f64::INFINITY, f64::min);
+    let (lo, hi) = paired
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &r| {
+            (lo.min(r), hi.max(r))
+        });
+    println!(
+        "\n{threads} threads / 1 thread, round by round: median {:.3} ({lo:.3}–{hi:.3}, {} \
+         rounds); fastest round / fastest round: {:.3}",
+        median(paired.clone()),
+        paired.len(),
+        fastest(many) / fastest(one),
+    );
+}
+
+fn main() -> Result<(), String> {
+    let Some(o) = parse()? else {
+        return Ok(());
+    };
+    let world = settled_pile(&o)?;
     let configs = [
         Config::Plain,
         Config::Chunked(1, o.domains),
@@ -251,26 +277,6 @@ fn main() -> Result<(), String> {
             step / plain
         );
     }
-    // Round by round: the runs of a round follow each other within a second, so they share
-    // the machine's state more often than the medians of whole columns do.
-    let paired: Vec<f64> = runs[2]
-        .iter()
-        .zip(&runs[1])
-        .map(|(many, one)| many.wall / one.wall)
-        .collect();
-    let fastest = |rs: &[Run]| rs.iter().map(|r| r.wall).fold(f64::INFINITY, f64::min);
-    let (lo, hi) = paired
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &r| {
-            (lo.min(r), hi.max(r))
-        });
-    println!(
-        "\n{} threads / 1 thread, round by round: median {:.3} ({lo:.3}–{hi:.3}, {} rounds); \
-         fastest round / fastest round: {:.3}",
-        o.threads,
-        median(paired.clone()),
-        paired.len(),
-        fastest(&runs[2]) / fastest(&runs[1]),
-    );
+    print_rounds(o.threads, &runs[2], &runs[1]);
     Ok(())
 }
