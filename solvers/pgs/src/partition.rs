@@ -114,45 +114,47 @@ impl Partition {
         }
     }
 
-    /// Each island body's slot in part `p`, written into `slot` (`u32::MAX` for the bodies
-    /// the part does not hold).
-    pub(crate) fn slots<'a>(&self, p: usize, slot: &'a mut Vec<u32>) -> &'a [u32] {
-        slot.clear();
-        slot.resize(self.bodies, u32::MAX);
-        for (s, &b) in self.bodies_of[p].iter().enumerate() {
-            slot[b as usize] = s as u32;
-        }
-        slot
-    }
-
     /// Runs `build(p, item, slot)` for the `p`-th item of `items` (one per part) on up to
-    /// `threads` threads (≥ 1), part `p` on thread `p mod threads`, each thread with a
-    /// scratch `slot` of its own for [`Self::slots`]. What `build` makes of an item must not
-    /// depend on the thread that runs it.
+    /// `threads` threads (≥ 1), part `p` on thread `p mod threads`. `slot` gives each island
+    /// body's slot in part `p` (`u32::MAX` for the bodies it does not hold); each thread
+    /// keeps it in a buffer of `scratch` of its own, set and reset part by part. What `build`
+    /// makes of an item must not depend on the thread that runs it.
     pub(crate) fn build_parts<T: Send>(
+        &self,
         items: Vec<T>,
+        scratch: &mut Vec<Vec<u32>>,
         threads: usize,
-        build: &(dyn Fn(usize, T, &mut Vec<u32>) + Sync),
+        build: &(dyn Fn(usize, T, &[u32]) + Sync),
     ) {
         let threads = threads.clamp(1, items.len().max(1));
         let mut shares: Vec<Vec<(usize, T)>> = (0..threads).map(|_| Vec::new()).collect();
         for (p, item) in items.into_iter().enumerate() {
             shares[p % threads].push((p, item));
         }
-        let run = |share: Vec<(usize, T)>| {
-            let mut slot = Vec::new();
+        if scratch.len() < threads {
+            scratch.resize_with(threads, Vec::new);
+        }
+        let run = |share: Vec<(usize, T)>, slot: &mut Vec<u32>| {
+            slot.clear();
+            slot.resize(self.bodies, u32::MAX);
             for (p, item) in share {
-                build(p, item, &mut slot);
+                for (s, &b) in self.bodies_of[p].iter().enumerate() {
+                    slot[b as usize] = s as u32;
+                }
+                build(p, item, slot);
+                for &b in &self.bodies_of[p] {
+                    slot[b as usize] = u32::MAX;
+                }
             }
         };
-        let mut shares = shares.into_iter();
-        let first = shares.next();
+        let mut work = shares.into_iter().zip(scratch.iter_mut());
+        let first = work.next();
         std::thread::scope(|scope| {
-            for share in shares {
-                scope.spawn(move || run(share));
+            for (share, slot) in work {
+                scope.spawn(move || run(share, slot));
             }
-            if let Some(share) = first {
-                run(share);
+            if let Some((share, slot)) = first {
+                run(share, slot);
             }
         });
     }
@@ -237,7 +239,16 @@ mod tests {
                 assert_eq!(p.bodies_of[3][s as usize], p.bodies_of[d][l as usize]);
             }
         }
-        let slots = p.slots(1, &mut Vec::new()).to_vec();
+        let mut made = vec![Vec::new(); 4];
+        p.build_parts(
+            made.iter_mut().collect(),
+            &mut Vec::new(),
+            1,
+            &|_, item, slot| {
+                *item = slot.to_vec();
+            },
+        );
+        let slots = &made[1];
         for (s, &b) in p.bodies_of[1].iter().enumerate() {
             assert_eq!(slots[b as usize], s as u32);
         }
@@ -248,24 +259,27 @@ mod tests {
     }
 
     #[test]
-    fn build_parts_visits_every_part_once_with_its_own_item_on_any_thread_count() {
-        // 7 parts of a chain cut into 6 domains; each build writes its part's slots into its
-        // item, which must match the slots made on this thread.
+    fn build_parts_visits_every_part_once_with_its_own_item_and_slots_on_any_thread_count() {
+        // 7 parts of a chain cut into 6 domains, built on 1 to 9 threads with one scratch kept
+        // throughout (so a buffer left dirty by a part would show in a later one): each part
+        // gets its own item, and exactly its own bodies' slots.
         let ends = |c: usize| [(c as u32, true), (c as u32 + 1, true)];
         let mut p = Partition::default();
         p.build(6, 20, 19, ends);
-        let expected: Vec<Vec<u32>> = (0..=6)
-            .map(|q| p.slots(q, &mut Vec::new()).to_vec())
-            .collect();
+        let mut scratch = Vec::new();
         for threads in 1..=9 {
             let mut made: Vec<(usize, Vec<u32>)> = vec![(usize::MAX, Vec::new()); 7];
             let items: Vec<_> = made.iter_mut().collect();
-            Partition::build_parts(items, threads, &|q, item, slot| {
-                *item = (q, p.slots(q, slot).to_vec());
+            p.build_parts(items, &mut scratch, threads, &|q, item, slot| {
+                *item = (q, slot.to_vec());
             });
             for (q, (seen, slots)) in made.iter().enumerate() {
                 assert_eq!(*seen, q, "{threads} threads");
-                assert_eq!(slots, &expected[q], "part {q}, {threads} threads");
+                let mut expected = vec![u32::MAX; 20];
+                for (s, &b) in p.bodies_of[q].iter().enumerate() {
+                    expected[b as usize] = s as u32;
+                }
+                assert_eq!(slots, &expected, "part {q}, {threads} threads");
             }
         }
     }

@@ -22,6 +22,8 @@ pub(crate) struct PositionDomains {
     rows: Vec<Vec<PosRow>>,
     /// Per part, its bodies' poses.
     poses: Vec<Vec<Pose>>,
+    /// Per building thread, each island body's slot in the part it builds (scratch).
+    slots: Vec<Vec<u32>>,
 }
 
 impl PositionDomains {
@@ -36,10 +38,9 @@ impl PositionDomains {
         self.poses.resize_with(n + 1, Vec::new);
         let partition = &self.partition;
         let items: Vec<_> = self.rows.iter_mut().zip(&mut self.poses).collect();
-        Partition::build_parts(items, threads, &|p, (list, own), slot| {
+        partition.build_parts(items, &mut self.slots, threads, &|p, (list, own), slot| {
             own.clear();
             own.extend(partition.bodies_of[p].iter().map(|&b| poses[b as usize]));
-            let slot = partition.slots(p, slot);
             list.clear();
             list.extend(
                 rows.iter()

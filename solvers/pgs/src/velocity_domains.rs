@@ -20,6 +20,8 @@ pub(crate) struct Domains {
     pub(crate) parts: Vec<PgsSolver>,
     /// Per part, the island's row of each of its rows.
     pub(crate) rows_of: Vec<Vec<u32>>,
+    /// Per building thread, each island body's slot in the part it builds (scratch).
+    slots: Vec<Vec<u32>>,
 }
 
 impl Domains {
@@ -51,10 +53,14 @@ impl Domains {
             vel,
             settings,
         };
-        Partition::build_parts(items, threads, &|p, (part, rows_of), slot| {
-            let slot = partition.slots(p, slot);
-            build_part(p, part, rows_of, partition, slot, &island);
-        });
+        partition.build_parts(
+            items,
+            &mut self.slots,
+            threads,
+            &|p, (part, rows_of), slot| {
+                build_part(p, part, rows_of, partition, slot, &island);
+            },
+        );
     }
 
     /// Copies the parts' impulses back into the island's rows and the domains' velocities
