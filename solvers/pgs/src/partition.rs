@@ -1,46 +1,59 @@
-//! An island cut into domains along the Z-order of its bodies: the partition that the domain
-//! plans of the velocity sweep ([`crate::velocity_domains`]) and of the position pass
+//! An island cut into bands of its contact graph: the partition that the band plans of the
+//! velocity sweep ([`crate::velocity_domains`]) and of the position pass
 //! ([`crate::position_domains`]) sweep side by side.
 //!
-//! The bodies (renumbered in Z-order by the solver, so a run of indices is a patch of space)
-//! are cut into `n` runs holding about as many constraints each: the domains. A constraint
-//! whose movable bodies all lie in one domain belongs to it; the others, across a cut, make
-//! part `n`, the cut. Immovable bodies belong to no domain: every part that reads one gets a
-//! copy (they are never written).
+//! The movable bodies are layered by a breadth-first walk of the constraints between them
+//! (from the lowest-numbered body; the solver numbers bodies in Z-order, so that is a corner
+//! of the island), and runs of layers holding about as many constraints each make `n` bands.
+//! A constraint belongs to the band of its later movable body. A breadth-first walk puts the
+//! two bodies of a constraint in the same layer or in neighbouring ones, so a band's
+//! constraints move bodies of that band and of the one before it only: two bands of the same
+//! parity share no movable body, and an iteration sweeps the even bands side by side, then
+//! the odd ones. A body that two bands move (a body of the seam between them) has one shared
+//! value that each band takes before its sweep and leaves after it. Immovable bodies belong
+//! to no band: every part that reads one gets a copy (they are never written).
 
 use std::ops::Range;
 
 /// A constraint's two bodies as the partition sees them: index and whether it can move.
 pub(crate) type Ends = [(u32, bool); 2];
 
-/// The most domains: a body's parts are bits of a `u64`, the cut's included.
+/// The most bands: a body's parts are bits of a `u64`.
 pub const MAX_DOMAINS: usize = 63;
 
 /// The parts of an island (buffers reused from one build to the next).
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Partition {
-    /// The number of domains; the cut is part `n`.
+    /// The number of bands (parts); some may be empty.
     pub(crate) n: usize,
-    /// The part of each constraint.
+    /// The band of each constraint.
     pub(crate) part_of: Vec<u32>,
-    /// Per part, its bodies in ascending island order: the bodies of its constraints, and
-    /// for a domain also its movable bodies that only the cut touches (so that a domain owns
-    /// every movable body of its run).
+    /// Per band, its bodies in ascending island order: the bodies of its constraints.
     pub(crate) bodies_of: Vec<Vec<u32>>,
-    /// The cut's movable bodies, domain by domain: (slot in the cut, slot in the domain).
+    /// The island bodies that two bands move, ascending: the shared values.
+    pub(crate) shared: Vec<u32>,
+    /// Per band, in its run of `links`: (slot in the band, index in `shared`).
     pub(crate) links: Vec<(u32, u32)>,
-    /// Per domain, its run of `links`.
+    /// Per band, its run of `links`.
     pub(crate) link_ranges: Vec<Range<usize>>,
     /// The number of the island's bodies.
     bodies: usize,
-    /// The first body of each domain.
-    starts: Vec<u32>,
+    /// Scratch: each body's layer (`u32::MAX`: not reached), then its band.
+    layer: Vec<u32>,
+    /// Scratch: the first neighbour of each body in `neighbours`, then the end.
+    first: Vec<u32>,
+    /// Scratch: the movable neighbours of every body, body by body.
+    neighbours: Vec<u32>,
+    /// Scratch: the breadth-first queue.
+    queue: Vec<u32>,
+    /// Scratch: the band of each layer, then of each body.
+    band: Vec<u32>,
     /// Scratch: the parts of each body, as bits.
     used: Vec<u64>,
 }
 
 impl Partition {
-    /// Cuts `bodies` bodies into `n` domains (1 to [`MAX_DOMAINS`], clamped) for the
+    /// Cuts `bodies` bodies into `n` bands (1 to [`MAX_DOMAINS`], clamped) for the
     /// constraints `0..count` with the given ends.
     pub(crate) fn build(
         &mut self,
@@ -52,66 +65,131 @@ impl Partition {
         let n = n.clamp(1, MAX_DOMAINS);
         self.n = n;
         self.bodies = bodies;
-        // Cut where the constraints counted at their first movable body reach k / n of all.
+        self.link_graph(count, &ends);
+        let layers = self.layer_bodies();
+        self.band_layers(n, layers, count, &ends);
+        // A constraint's band: its later movable body's (none movable: band 0, which leaves
+        // it as it is).
+        let band = &self.band;
         let key = |[(a, ma), (b, mb)]: Ends| match (ma, mb) {
-            (true, true) => a.min(b),
-            (true, false) => a,
-            (false, true) => b,
+            (true, true) => band[a as usize].max(band[b as usize]),
+            (true, false) => band[a as usize],
+            (false, true) => band[b as usize],
             (false, false) => 0,
         };
-        self.used.clear();
-        self.used.resize(bodies + 1, 0);
-        for c in 0..count {
-            self.used[key(ends(c)) as usize] += 1;
-        }
-        self.starts.clear();
-        let mut seen = 0usize;
-        for (b, &k) in self.used.iter().enumerate() {
-            while self.starts.len() < n && seen >= self.starts.len() * count / n {
-                self.starts.push(b as u32);
-            }
-            seen += k as usize;
-        }
-        self.starts.resize(n, bodies as u32);
         let mut part_of = std::mem::take(&mut self.part_of);
         part_of.clear();
-        part_of.extend((0..count).map(|c| self.part(ends(c))));
+        part_of.extend((0..count).map(|c| key(ends(c))));
         self.part_of = part_of;
         // The parts each body belongs to, as bits.
         self.used.clear();
         self.used.resize(bodies, 0);
         for (c, &q) in self.part_of.iter().enumerate() {
-            for (b, moves) in ends(c) {
+            for (b, _) in ends(c) {
                 self.used[b as usize] |= 1 << q;
-                if moves && q as usize == n {
-                    self.used[b as usize] |= 1 << self.domain(b);
-                }
             }
         }
-        self.bodies_of.resize_with(n + 1, Vec::new);
+        self.bodies_of.resize_with(n, Vec::new);
         for (p, list) in self.bodies_of.iter_mut().enumerate() {
             list.clear();
             let bit = 1u64 << p;
             list.extend((0..bodies as u32).filter(|&b| self.used[b as usize] & bit != 0));
         }
-        self.link_cut(count, &ends);
+        self.link_seams(count, &ends);
     }
 
-    /// The domain of movable body `b`.
-    pub(crate) fn domain(&self, b: u32) -> u32 {
-        (self.starts.partition_point(|&s| s <= b) - 1) as u32
-    }
-
-    /// The part of a constraint: the domain of its movable bodies, or the cut when they lie
-    /// in two domains (one without a movable body, which a sweep leaves as it is, goes to
-    /// domain 0).
-    fn part(&self, [(a, ma), (b, mb)]: Ends) -> u32 {
-        let (da, db) = (ma.then(|| self.domain(a)), mb.then(|| self.domain(b)));
-        match (da, db) {
-            (Some(x), Some(y)) if x != y => self.n as u32,
-            (Some(d), _) | (None, Some(d)) => d,
-            (None, None) => 0,
+    /// The movable neighbours of every body (`first`, `neighbours`), in constraint order.
+    fn link_graph(&mut self, count: usize, ends: &impl Fn(usize) -> Ends) {
+        let bodies = self.bodies;
+        self.first.clear();
+        self.first.resize(bodies + 1, 0);
+        let joined = |c: usize| match ends(c) {
+            [(a, true), (b, true)] if a != b => Some((a, b)),
+            _ => None,
+        };
+        for (a, b) in (0..count).filter_map(joined) {
+            self.first[a as usize + 1] += 1;
+            self.first[b as usize + 1] += 1;
         }
+        for b in 0..bodies {
+            self.first[b + 1] += self.first[b];
+        }
+        self.neighbours.clear();
+        self.neighbours.resize(self.first[bodies] as usize, 0);
+        // `queue` as each body's fill cursor.
+        self.queue.clear();
+        self.queue.extend_from_slice(&self.first[..bodies]);
+        for (a, b) in (0..count).filter_map(joined) {
+            for (from, to) in [(a, b), (b, a)] {
+                let at = &mut self.queue[from as usize];
+                self.neighbours[*at as usize] = to;
+                *at += 1;
+            }
+        }
+    }
+
+    /// Each body's breadth-first layer (`layer`), walks started from the lowest-numbered body
+    /// not yet reached, each walk's layers after the last one's. Returns the layer count.
+    fn layer_bodies(&mut self) -> usize {
+        let bodies = self.bodies;
+        self.layer.clear();
+        self.layer.resize(bodies, u32::MAX);
+        let mut layers = 0u32;
+        for start in 0..bodies {
+            if self.layer[start] != u32::MAX {
+                continue;
+            }
+            self.queue.clear();
+            self.queue.push(start as u32);
+            self.layer[start] = layers;
+            let mut head = 0;
+            while head < self.queue.len() {
+                let b = self.queue[head] as usize;
+                head += 1;
+                let next = self.layer[b] + 1;
+                let range = self.first[b] as usize..self.first[b + 1] as usize;
+                for &to in &self.neighbours[range] {
+                    if self.layer[to as usize] == u32::MAX {
+                        self.layer[to as usize] = next;
+                        self.queue.push(to);
+                    }
+                }
+            }
+            let last = self.queue.last().map_or(layers, |&b| self.layer[b as usize]);
+            layers = last + 1;
+        }
+        layers as usize
+    }
+
+    /// Runs of layers holding about `count / n` constraints each (counted at their later
+    /// movable body's layer) into bands; each body's band into `band`. Neighbouring layers
+    /// get the same band or neighbouring ones, so a constraint's bodies do too.
+    fn band_layers(&mut self, n: usize, layers: usize, count: usize, ends: &impl Fn(usize) -> Ends) {
+        self.band.clear();
+        self.band.resize(layers, 0);
+        let layer = &self.layer;
+        for c in 0..count {
+            let at = match ends(c) {
+                [(a, true), (b, true)] => layer[a as usize].max(layer[b as usize]),
+                [(a, true), _] | [_, (a, true)] => layer[a as usize],
+                _ => continue,
+            };
+            self.band[at as usize] += 1;
+        }
+        // A layer opens the next band once the constraints before it reach that band's share.
+        let (mut seen, mut band) = (0usize, 0usize);
+        for k in &mut self.band {
+            if band + 1 < n && seen > 0 && seen * n >= (band + 1) * count {
+                band += 1;
+            }
+            seen += *k as usize;
+            *k = band as u32;
+        }
+        // Each body's band in place of its layer (a body no constraint moves keeps band 0).
+        for l in &mut self.layer {
+            *l = self.band.get(*l as usize).copied().unwrap_or(0);
+        }
+        std::mem::swap(&mut self.layer, &mut self.band);
     }
 
     /// Runs `build(p, item, slot)` for the `p`-th item of `items` (one per part) on up to
@@ -159,35 +237,38 @@ impl Partition {
         });
     }
 
-    /// The cut's movable bodies, linked to their slots in their domains.
-    fn link_cut(&mut self, count: usize, ends: &impl Fn(usize) -> Ends) {
-        let n = self.n;
+    /// The bodies that two bands move, and each band's links to their shared values.
+    fn link_seams(&mut self, count: usize, ends: &impl Fn(usize) -> Ends) {
+        // `queue` as each body's index in `shared` (`u32::MAX`: not shared).
+        self.queue.clear();
+        self.queue.resize(self.bodies, u32::MAX);
+        self.shared.clear();
+        let mut moves = std::mem::take(&mut self.first);
+        moves.clear();
+        moves.resize(self.bodies, 0);
+        for c in 0..count {
+            for (b, m) in ends(c) {
+                moves[b as usize] |= u32::from(m);
+            }
+        }
+        for (b, (&bits, &m)) in self.used.iter().zip(&moves).enumerate() {
+            if m == 1 && bits.count_ones() > 1 {
+                self.queue[b] = self.shared.len() as u32;
+                self.shared.push(b as u32);
+            }
+        }
+        self.first = moves;
         self.links.clear();
         self.link_ranges.clear();
-        // (domain, body) of every movable body of the cut, in domain order.
-        let mut movers: Vec<(u32, u32)> = (0..count)
-            .filter(|&c| self.part_of[c] as usize == n)
-            .flat_map(|c| ends(c).into_iter().filter(|&(_, moves)| moves))
-            .map(|(b, _)| (self.domain(b), b))
-            .collect();
-        movers.sort_unstable();
-        movers.dedup();
-        let slot_in = |list: &[u32], b: u32| {
-            list.binary_search(&b)
-                .expect("a part holds the bodies it is linked by") as u32
-        };
-        let mut at = 0;
-        for d in 0..n as u32 {
-            let first = self.links.len();
-            while at < movers.len() && movers[at].0 == d {
-                let b = movers[at].1;
-                self.links.push((
-                    slot_in(&self.bodies_of[n], b),
-                    slot_in(&self.bodies_of[d as usize], b),
-                ));
-                at += 1;
+        for list in &self.bodies_of {
+            let start = self.links.len();
+            for (s, &b) in list.iter().enumerate() {
+                let at = self.queue[b as usize];
+                if at != u32::MAX {
+                    self.links.push((s as u32, at));
+                }
             }
-            self.link_ranges.push(first..self.links.len());
+            self.link_ranges.push(start..self.links.len());
         }
     }
 }
@@ -197,9 +278,10 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_chain_is_cut_into_balanced_domains_and_a_cut_between_them() {
-        // Bodies 0..=10 in a chain (constraint c joins c and c + 1), body 5 immovable: 3
-        // domains of about 10 / 3 constraints, the constraints across the cuts in the cut.
+    fn a_chain_is_cut_into_balanced_bands_with_one_seam_body_between_neighbours() {
+        // Bodies 0..=10 in a chain (constraint c joins c and c + 1), body 5 immovable: the
+        // walk from body 0 stops at 5, the second from 6 goes on; 3 bands of about 10 / 3
+        // constraints.
         let moves = |b: u32| b != 5;
         let ends = |c: usize| {
             [
@@ -210,36 +292,35 @@ mod tests {
         let mut p = Partition::default();
         p.build(3, 11, 10, ends);
         assert_eq!(p.n, 3);
-        let mut counts = [0; 4];
-        for (c, &q) in p.part_of.iter().enumerate() {
+        let mut counts = [0; 3];
+        for &q in &p.part_of {
             counts[q as usize] += 1;
-            let [(a, ma), (b, mb)] = ends(c);
-            if q == 3 {
-                assert!(ma && mb && p.domain(a) != p.domain(b), "constraint {c}");
-            } else {
-                for (body, m) in [(a, ma), (b, mb)] {
-                    assert!(!m || p.domain(body) == q, "constraint {c}");
-                }
-            }
         }
         assert_eq!(counts.iter().sum::<usize>(), 10);
-        assert!(
-            counts[..3].iter().all(|&k| (2..=4).contains(&k)),
-            "{counts:?}"
-        );
-        // Each movable body in exactly one domain's list; the immovable body 5 in the lists
-        // of the parts that read it.
+        assert!(counts.iter().all(|&k| (2..=5).contains(&k)), "{counts:?}");
+        // Bands follow the chain: a constraint's band is that of its later body, no earlier
+        // than the band before.
+        assert!(p.part_of.windows(2).all(|w| w[0] <= w[1] && w[1] <= w[0] + 1));
+        // Every movable body in one band's list or, at a seam, in two neighbouring ones; the
+        // immovable body 5 in the lists of the bands that read it, never shared.
         for b in (0..11u32).filter(|&b| moves(b)) {
-            let holders = (0..3).filter(|&d| p.bodies_of[d].contains(&b)).count();
-            assert_eq!(holders, 1, "body {b}");
-        }
-        // Every link joins the same body in the cut and in its domain.
-        for (d, range) in p.link_ranges.iter().enumerate() {
-            for &(s, l) in &p.links[range.clone()] {
-                assert_eq!(p.bodies_of[3][s as usize], p.bodies_of[d][l as usize]);
+            let holders: Vec<usize> = (0..3).filter(|&d| p.bodies_of[d].contains(&b)).collect();
+            match holders[..] {
+                [_] => assert!(!p.shared.contains(&b), "body {b}"),
+                [x, y] => assert!(y == x + 1 && p.shared.contains(&b), "body {b}"),
+                _ => panic!("body {b} in bands {holders:?}"),
             }
         }
-        let mut made = vec![Vec::new(); 4];
+        // Layers 0–4, then 5 (body 5 alone), then 6–10; the first seam falls on the immovable
+        // body, the second shares body 7.
+        assert_eq!(p.shared, [7]);
+        // Every link joins the same body in its band and in the shared list.
+        for (d, range) in p.link_ranges.iter().enumerate() {
+            for &(s, k) in &p.links[range.clone()] {
+                assert_eq!(p.bodies_of[d][s as usize], p.shared[k as usize]);
+            }
+        }
+        let mut made = vec![Vec::new(); 3];
         p.build_parts(
             made.iter_mut().collect(),
             &mut Vec::new(),
@@ -259,13 +340,66 @@ mod tests {
     }
 
     #[test]
+    fn a_grid_walked_from_its_corner_has_no_constraint_across_two_bands() {
+        // A 12 × 9 grid of bodies (row-major) with constraints to the right and upward
+        // neighbours, its bottom row immovable except for the corner: walks layer the bodies
+        // by their distance from the corner, and a constraint's bodies lie in one band or in
+        // two neighbouring ones.
+        let (w, h) = (12u32, 9u32);
+        let moves = |b: u32| b == 0 || b >= w;
+        let mut pairs = Vec::new();
+        for y in 0..h {
+            for x in 0..w {
+                let b = y * w + x;
+                if x + 1 < w {
+                    pairs.push((b, b + 1));
+                }
+                if y + 1 < h {
+                    pairs.push((b, b + w));
+                }
+            }
+        }
+        let ends = |c: usize| {
+            let (a, b) = pairs[c];
+            [(a, moves(a)), (b, moves(b))]
+        };
+        let mut p = Partition::default();
+        for n in 1..=8 {
+            p.build(n, (w * h) as usize, pairs.len(), ends);
+            for (c, &q) in p.part_of.iter().enumerate() {
+                for (b, m) in ends(c) {
+                    if m {
+                        let holders: Vec<u32> = (0..n as u32)
+                            .filter(|&d| p.bodies_of[d as usize].binary_search(&b).is_ok())
+                            .collect();
+                        assert!(holders.contains(&q), "constraint {c}");
+                        assert!(holders.len() <= 2, "body {b} in bands {holders:?}");
+                        assert!(holders.iter().all(|&d| d.abs_diff(q) <= 1));
+                    }
+                }
+            }
+            let mut counts = vec![0usize; n];
+            for &q in &p.part_of {
+                counts[q as usize] += 1;
+            }
+            // A band closes on the layer that reaches its share, so it misses the share by
+            // less than a layer's constraints (a diagonal of the grid: under 3 h).
+            let share = pairs.len() / n;
+            assert!(
+                counts.iter().all(|&k| k > 0 && k.abs_diff(share) < 3 * h as usize),
+                "{n} bands: {counts:?}"
+            );
+        }
+    }
+
+    #[test]
     fn build_parts_visits_every_part_once_with_its_own_item_and_slots_on_any_thread_count() {
-        // 7 parts of a chain cut into 6 domains, built on 1 to 9 threads with one scratch kept
-        // throughout (so a buffer left dirty by a part would show in a later one): each part
-        // gets its own item, and exactly its own bodies' slots.
+        // 7 bands of a chain, built on 1 to 9 threads with one scratch kept throughout (so a
+        // buffer left dirty by a band would show in a later one): each band gets its own item,
+        // and exactly its own bodies' slots.
         let ends = |c: usize| [(c as u32, true), (c as u32 + 1, true)];
         let mut p = Partition::default();
-        p.build(6, 20, 19, ends);
+        p.build(7, 20, 19, ends);
         let mut scratch = Vec::new();
         for threads in 1..=9 {
             let mut made: Vec<(usize, Vec<u32>)> = vec![(usize::MAX, Vec::new()); 7];
@@ -285,15 +419,18 @@ mod tests {
     }
 
     #[test]
-    fn one_domain_leaves_an_empty_cut() {
+    fn one_band_shares_nothing_and_empty_bands_lose_nothing() {
         let ends = |c: usize| [(c as u32, true), (c as u32 + 1, true)];
         let mut p = Partition::default();
         p.build(1, 6, 5, ends);
         assert!(p.part_of.iter().all(|&q| q == 0));
-        assert!(p.bodies_of[1].is_empty() && p.links.is_empty());
-        // More domains than constraints: some stay empty, nothing is lost.
+        assert!(p.shared.is_empty() && p.links.is_empty());
+        // More bands than constraints: some stay empty, nothing is lost.
         p.build(9, 6, 5, ends);
         assert_eq!(p.part_of.len(), 5);
         assert_eq!(p.link_ranges.len(), 9);
+        // No constraint at all.
+        p.build(4, 3, 0, ends);
+        assert!(p.part_of.is_empty() && p.bodies_of.iter().all(Vec::is_empty));
     }
 }

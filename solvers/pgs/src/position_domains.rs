@@ -1,8 +1,8 @@
-//! The domain plan of the position pass of a large island, on one thread or several.
+//! The band plan of the position pass of a large island, on one thread or several.
 //!
-//! The island is cut into domains and the cut ([`Partition`]), as the velocity sweep's; each
-//! part visits its points in the island's order (no colours: one thread sweeps a part) on
-//! poses of its own, and [`sweep_parts`] runs the iterations. The pass's measures are minima
+//! The island is cut into bands ([`Partition`]), as the velocity sweep's; each band visits its
+//! points in the island's order (no colours: one thread sweeps a band) on poses of its own,
+//! and [`sweep_parts`] runs the iterations. The pass's measures are minima
 //! and maxima, so only the order of the corrections decides the bits, and that order is the
 //! same for every thread count.
 
@@ -13,29 +13,29 @@ use crate::domain_sweep::{Part, sweep_parts};
 use crate::partition::Partition;
 use crate::position::{PassMeasures, PosRow, correct_point};
 
-/// The parts of the position pass's domain plan (buffers reused from one island to the next).
+/// The bands of the position pass's band plan (buffers reused from one island to the next).
 #[derive(Debug, Clone, Default)]
 pub(crate) struct PositionDomains {
-    /// Which points and bodies each part holds, and the cut's links to the domains.
+    /// Which points and bodies each band holds, and the seams between them.
     partition: Partition,
-    /// Per part, its rows (bodies renumbered to the part's slots), in the island's order.
+    /// Per band, its rows (bodies renumbered to the band's slots), in the island's order.
     rows: Vec<Vec<PosRow>>,
-    /// Per part, its bodies' poses.
+    /// Per band, its bodies' poses.
     poses: Vec<Vec<Pose>>,
-    /// Per building thread, each island body's slot in the part it builds (scratch).
+    /// Per building thread, each island body's slot in the band it builds (scratch).
     slots: Vec<Vec<u32>>,
 }
 
 impl PositionDomains {
-    /// Cuts the island (`rows` and `poses`, bodies in Z-order) into `n` domains (1 to
-    /// [`MAX_DOMAINS`](crate::MAX_DOMAINS), clamped) and the cut, the parts built side by side
-    /// on up to `threads` threads (≥ 1).
+    /// Cuts the island (`rows` and `poses`, bodies in Z-order) into `n` bands (1 to
+    /// [`MAX_DOMAINS`](crate::MAX_DOMAINS), clamped), the bands built side by side on up to
+    /// `threads` threads (≥ 1).
     pub(crate) fn build(&mut self, n: usize, threads: usize, rows: &[PosRow], poses: &[Pose]) {
         self.partition
             .build(n, poses.len(), rows.len(), |k| rows[k].ends());
         let n = self.partition.n;
-        self.rows.resize_with(n + 1, Vec::new);
-        self.poses.resize_with(n + 1, Vec::new);
+        self.rows.resize_with(n, Vec::new);
+        self.poses.resize_with(n, Vec::new);
         let partition = &self.partition;
         let items: Vec<_> = self.rows.iter_mut().zip(&mut self.poses).collect();
         partition.build_parts(items, &mut self.slots, threads, &|p, (list, own), slot| {
@@ -51,7 +51,8 @@ impl PositionDomains {
         });
     }
 
-    /// Runs the pass on up to `threads` threads (≥ 1; no more than the domains) under the stop
+    /// Runs the pass on up to `threads` threads (≥ 1; no more than half the bands, rounded up)
+    /// under the stop
     /// rule of `settings`, and writes the poses back (`poses`: the island's, as given to
     /// [`Self::build`]).
     pub(crate) fn solve(
@@ -84,9 +85,9 @@ impl PositionDomains {
         if let Some((it, last)) = passes.iter().enumerate().next_back() {
             last.judge(it as u32, settings, report);
         }
-        // Each movable body from its domain (the cut's are their domains' too).
-        let n = self.partition.n;
-        for (own, bodies) in self.poses[..n].iter().zip(&self.partition.bodies_of) {
+        // Each body from its bands (a seam body's poses are the same in both after the pass;
+        // an immovable body's are never written).
+        for (own, bodies) in self.poses.iter().zip(&self.partition.bodies_of) {
             for (pose, &b) in own.iter().zip(bodies) {
                 poses[b as usize] = *pose;
             }
@@ -94,7 +95,7 @@ impl PositionDomains {
     }
 }
 
-/// A part of the pass: its rows and its poses.
+/// A band of the pass: its rows and its poses.
 struct PositionPart<'a> {
     rows: &'a [PosRow],
     poses: &'a mut [Pose],
@@ -102,17 +103,17 @@ struct PositionPart<'a> {
 }
 
 impl Part for PositionPart<'_> {
-    type Value = Pose;
     type Measures = PassMeasures;
 
     #[inline]
-    fn get(&self, slot: u32) -> Pose {
-        self.poses[slot as usize]
+    fn get(&self, slot: u32) -> [f64; 3] {
+        let p = self.poses[slot as usize];
+        [p.position.x, p.position.y, p.angle]
     }
 
     #[inline]
-    fn set(&mut self, slot: u32, value: Pose) {
-        self.poses[slot as usize] = value;
+    fn set(&mut self, slot: u32, [x, y, angle]: [f64; 3]) {
+        self.poses[slot as usize] = Pose::new(deepcontact_core::math::Vector::new(x, y), angle);
     }
 
     fn sweep(&mut self) -> PassMeasures {

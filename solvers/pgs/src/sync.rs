@@ -2,6 +2,7 @@
 //! velocity, a pose, a set of measures) and a queue of phased work items.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering as Mem};
+use std::sync::{Mutex, PoisonError};
 
 /// Three `f64`s that threads share, as bits in relaxed atomics (plain loads and stores on
 /// x86-64 and AArch64): each is written by one thread within a phase, and [`run_phased`]'s
@@ -50,17 +51,28 @@ fn wait_until(ready: impl Fn() -> bool) {
     }
 }
 
+/// A thread's home segment of the phase it is claimed in: which phase (counted over the
+/// whole run, so a claim made for an earlier one is told apart), and the items taken from its
+/// front (by its owner) and from its back (by helpers).
+#[derive(Debug, Default)]
+struct Segment {
+    phase: usize,
+    front: usize,
+    back: usize,
+}
+
 /// Runs iterations of phased work on `threads` threads (≥ 1; the caller is one of them).
 ///
 /// An iteration is `phase_starts.last()` items in phases (`phase_starts`: the first item of
 /// each phase, ascending from 0, then the item count). Every thread walks the phases in
-/// order; each phase is split into one contiguous home segment per thread, and a thread
-/// claims the items of its own segment first, then helps with the others' (each segment has
-/// its own counter), then waits until every item of the phase is done. The thread that
-/// completes an iteration's last item calls `judge(iteration, parity)` (0-based; `parity` =
-/// iteration mod 2, which `process(item, parity)` also gets); `true` stops the run. A thread
-/// that loses its core holds up at most the one item it claimed. What an item computes must
-/// not depend on which thread runs it. Returns the iterations run.
+/// order; each phase is split into one contiguous home segment per thread. A thread takes
+/// the items of its own segment from the front, then helps with the others' from their back
+/// (so a thread that runs slower leaves the end of its segment to a faster one), then waits
+/// until every item of the phase is done. The thread that completes an iteration's last item
+/// calls `judge(iteration, parity)` (0-based; `parity` = iteration mod 2, which
+/// `process(item, parity)` also gets); `true` stops the run. A thread that loses its core
+/// holds up at most the one item it claimed. What an item computes must not depend on which
+/// thread runs it. Returns the iterations run.
 pub(crate) fn run_phased(
     threads: usize,
     max_iterations: u32,
@@ -77,39 +89,37 @@ pub(crate) fn run_phased(
     let home = |p: usize, t: usize| {
         phase_starts[p] + (phase_starts[p + 1] - phase_starts[p]) * t / threads
     };
-    // Per thread: where each phase's segment starts in its counter's count of one iteration,
-    // and the count of a whole iteration.
-    let offsets: Vec<Vec<usize>> = (0..threads)
-        .map(|t| {
-            let mut acc = 0;
-            let mut v: Vec<usize> = (0..phases)
-                .map(|p| {
-                    let at = acc;
-                    acc += home(p, t + 1) - home(p, t);
-                    at
-                })
-                .collect();
-            v.push(acc);
-            v
-        })
-        .collect();
-    let cursors: Vec<Padded<AtomicUsize>> =
-        (0..threads).map(|_| Padded(AtomicUsize::new(0))).collect();
+    let segments: Vec<Padded<Mutex<Segment>>> =
+        (0..threads).map(|_| Padded::default()).collect();
     let (done, judged) = (Padded(AtomicUsize::new(0)), Padded(AtomicUsize::new(0)));
     let stopped = AtomicBool::new(false);
-    // Claims one item of segment t in phase p of iteration it, if one is left.
-    let claim = |t: usize, it: usize, p: usize| -> Option<usize> {
-        let first = it * offsets[t][phases] + offsets[t][p];
-        let end = first + home(p, t + 1) - home(p, t);
-        let cursor = &cursors[t].0;
-        let mut c = cursor.load(Mem::Relaxed);
-        while c < end {
-            match cursor.compare_exchange_weak(c, c + 1, Mem::Relaxed, Mem::Relaxed) {
-                Ok(_) => return Some(home(p, t) + (c - first)),
-                Err(now) => c = now,
-            }
+    // Claims one item of segment t in phase p of iteration it, if one is left: from the front
+    // for its owner `me`, from the back for a helper. A segment still marked with an earlier
+    // phase is fresh (every item of that phase is done before a thread claims in this one).
+    let claim = |me: usize, t: usize, it: usize, p: usize| -> Option<usize> {
+        let (first, len) = (home(p, t), home(p, t + 1) - home(p, t));
+        if len == 0 {
+            return None;
         }
-        None
+        let phase = it * phases + p + 1;
+        let mut seg = segments[t].0.lock().unwrap_or_else(PoisonError::into_inner);
+        if seg.phase < phase {
+            *seg = Segment {
+                phase,
+                front: 0,
+                back: 0,
+            };
+        }
+        if seg.phase > phase || seg.front + seg.back == len {
+            return None;
+        }
+        if t == me {
+            seg.front += 1;
+            Some(first + seg.front - 1)
+        } else {
+            seg.back += 1;
+            Some(first + len - seg.back)
+        }
     };
     let work = |me: usize| {
         for it in 0..max_iterations as usize {
@@ -125,7 +135,7 @@ pub(crate) fn run_phased(
                 wait_until(|| done.0.load(Mem::Acquire) >= need);
                 for k in 0..threads {
                     let t = (me + k) % threads;
-                    while let Some(item) = claim(t, it, p) {
+                    while let Some(item) = claim(me, t, it, p) {
                         process(item, it % 2);
                         if done.0.fetch_add(1, Mem::AcqRel) + 1 == (it + 1) * total {
                             if judge(it as u32, it % 2) {
@@ -173,7 +183,6 @@ pub(crate) fn phase_starts(counts: impl IntoIterator<Item = usize>) -> Vec<usize
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::sync::Mutex;
 
     #[test]
     fn phased_items_run_in_phase_order_and_the_judge_stops_the_run() {

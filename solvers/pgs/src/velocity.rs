@@ -1732,8 +1732,8 @@ mod tests {
 
     #[test]
     fn domain_plan_gives_the_same_bits_on_one_to_five_real_threads() {
-        // 4 domains of the 100-body pile on up to five threads (more threads than domains work
-        // on none).
+        // 8 bands of the 100-body pile on up to five threads (more threads than the 4 even
+        // bands work on none).
         let settings = PgsSettings {
             parallel_min_points: 0,
             ..PgsSettings::default()
@@ -1742,7 +1742,7 @@ mod tests {
             // The parts built on the same threads as the sweep.
             let d = &mut solver.domains;
             d.build(
-                4,
+                8,
                 threads,
                 &solver.manifolds,
                 &solver.rows,
@@ -1801,16 +1801,17 @@ mod tests {
     }
 
     #[test]
-    fn domains_own_their_movable_bodies_and_the_cut_holds_the_rest() {
-        // Every manifold in exactly one part, every row once; a movable body in one domain
-        // only; a cut manifold moves bodies of two domains.
+    fn bands_share_movable_bodies_only_with_their_neighbours() {
+        // Every manifold in exactly one band, every row once; a movable body moved by one band
+        // or by two neighbouring ones (then it is a seam body, linked in both), so two bands
+        // of one parity never move the same body.
         let problem = pile_problem();
         let mut solver = PgsSolver::with_settings(PgsSettings {
             parallel_min_points: 0,
             ..PgsSettings::default()
         });
         solver.prepare(&problem, &vec![Impulse::ZERO; problem.len()]);
-        for n in 1..=5 {
+        for n in 1..=9 {
             let d = &mut solver.domains;
             d.build(
                 n,
@@ -1821,50 +1822,53 @@ mod tests {
                 solver.settings,
             );
             let manifolds: usize = d.parts.iter().map(|p| p.manifolds.len()).sum();
-            assert_eq!(manifolds, solver.manifolds.len(), "{n} domains");
+            assert_eq!(manifolds, solver.manifolds.len(), "{n} bands");
             let mut rows: Vec<u32> = d.rows_of.iter().flatten().copied().collect();
             rows.sort_unstable();
             assert_eq!(rows, (0..problem.len() as u32).collect::<Vec<_>>());
-            let mut owner = vec![None; solver.vel.len()];
-            for (p, part) in d.parts[..n].iter().enumerate() {
+            let mut movers = vec![Vec::new(); solver.vel.len()];
+            for (p, part) in d.parts.iter().enumerate() {
                 for m in &part.manifolds {
                     for (b, moves) in [(m.a, movable(m.ma, m.ia)), (m.b, movable(m.mb, m.ib))] {
-                        if moves {
-                            let body = d.partition.bodies_of[p][b as usize] as usize;
-                            assert!(owner[body].is_none_or(|o| o == p), "body {body}");
-                            owner[body] = Some(p);
+                        let body = d.partition.bodies_of[p][b as usize] as usize;
+                        if moves && !movers[body].contains(&p) {
+                            movers[body].push(p);
                         }
                     }
                 }
             }
-            let cut = &d.parts[n];
-            for m in &cut.manifolds {
-                let body = |b: u32| d.partition.bodies_of[n][b as usize] as usize;
-                assert!(movable(m.ma, m.ia) && movable(m.mb, m.ib));
-                let (a, b) = (owner[body(m.a)], owner[body(m.b)]);
-                assert!(
-                    a.is_none() || b.is_none() || a != b,
-                    "a cut manifold inside a domain"
-                );
-            }
-            // Each movable body of the cut is linked to its domain's slot of the same body.
-            assert_eq!(d.partition.link_ranges.len(), n);
-            for (p, range) in d.partition.link_ranges.iter().enumerate() {
-                for &(s, l) in &d.partition.links[range.clone()] {
-                    assert_eq!(
-                        d.partition.bodies_of[n][s as usize],
-                        d.partition.bodies_of[p][l as usize]
-                    );
+            let mut seams = Vec::new();
+            for (body, bands) in movers.iter().enumerate() {
+                match bands[..] {
+                    [] | [_] => {}
+                    [p, q] => {
+                        assert_eq!(p.abs_diff(q), 1, "body {body} in bands {p} and {q}");
+                        seams.push(body as u32);
+                    }
+                    _ => panic!("body {body} moved by bands {bands:?}"),
                 }
             }
-            if n == 1 {
-                assert!(cut.manifolds.is_empty(), "one domain leaves no cut");
-            } else {
-                assert!(
-                    !cut.manifolds.is_empty(),
-                    "{n} domains of a pile cut nothing"
-                );
+            assert_eq!(d.partition.shared, seams, "{n} bands");
+            // Each band links exactly its seam bodies to their shared values.
+            for (p, range) in d.partition.link_ranges.iter().enumerate() {
+                let linked: Vec<u32> = d.partition.links[range.clone()]
+                    .iter()
+                    .map(|&(s, k)| {
+                        let body = d.partition.bodies_of[p][s as usize];
+                        assert_eq!(body, d.partition.shared[k as usize]);
+                        body
+                    })
+                    .collect();
+                let own: Vec<u32> = seams
+                    .iter()
+                    .copied()
+                    .filter(|&b| movers[b as usize].contains(&p))
+                    .collect();
+                assert_eq!(linked, own, "band {p} of {n}");
             }
+            let used = d.parts.iter().filter(|p| !p.manifolds.is_empty()).count();
+            assert_eq!(used, n, "{n} bands of a 100-body pile: {used} hold manifolds");
+            assert_eq!(seams.is_empty(), n == 1, "{n} bands");
         }
     }
 }

@@ -1,9 +1,9 @@
-//! The domain plan of the velocity sweep of a large island, on one thread or several.
+//! The band plan of the velocity sweep of a large island, on one thread or several.
 //!
-//! The island is cut into domains and the cut ([`Partition`]); each part is an island of its
-//! own for the sweep — its rows, its bodies (renumbered in order), its colours and batches —
-//! so a domain is swept by the ordinary one-thread loop (lanes and all) on memory no other
-//! thread touches, and [`sweep_parts`] runs the iterations.
+//! The island is cut into bands ([`Partition`]); each band is an island of its own for the
+//! sweep — its rows, its bodies (renumbered in order), its colours and batches — so a band is
+//! swept by the ordinary one-thread loop (lanes and all) on memory no other thread touches
+//! while it runs, and [`sweep_parts`] runs the iterations.
 
 use deepcontact_core::{ResidualNorm, SolveReport, SolverSettings};
 
@@ -11,24 +11,24 @@ use crate::domain_sweep::{Part, sweep_parts};
 use crate::partition::Partition;
 use crate::velocity::{Manifold, PgsSettings, PgsSolver, Row, Sweep, Vel, Verdict, judge, movable};
 
-/// The parts of the domain plan, rebuilt for every solve (buffers reused).
+/// The bands of the band plan, rebuilt for every solve (buffers reused).
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Domains {
-    /// Which manifolds and bodies each part holds, and the cut's links to the domains.
+    /// Which manifolds and bodies each band holds, and the seams between them.
     pub(crate) partition: Partition,
-    /// Domains `0..n`, then the cut, each a one-thread solver holding its part.
+    /// The bands, each a one-thread solver holding its manifolds.
     pub(crate) parts: Vec<PgsSolver>,
-    /// Per part, the island's row of each of its rows.
+    /// Per band, the island's row of each of its rows.
     pub(crate) rows_of: Vec<Vec<u32>>,
-    /// Per building thread, each island body's slot in the part it builds (scratch).
+    /// Per building thread, each island body's slot in the band it builds (scratch).
     slots: Vec<Vec<u32>>,
 }
 
 impl Domains {
     /// Cuts the island (`manifolds`, `rows`, `vel`: the solver's, after the warm start, bodies
-    /// in Z-order) into `n` domains (1 to [`MAX_DOMAINS`](crate::MAX_DOMAINS), clamped) and
-    /// the cut, and builds each part's sweep plan, the parts side by side on up to `threads`
-    /// threads (≥ 1; a part's plan does not depend on the thread).
+    /// in Z-order) into `n` bands (1 to [`MAX_DOMAINS`](crate::MAX_DOMAINS), clamped) and
+    /// builds each band's sweep plan, the bands side by side on up to `threads` threads (≥ 1;
+    /// a band's plan does not depend on the thread).
     pub(crate) fn build(
         &mut self,
         n: usize,
@@ -43,8 +43,8 @@ impl Domains {
             [(m.a, movable(m.ma, m.ia)), (m.b, movable(m.mb, m.ib))]
         });
         let n = self.partition.n;
-        self.parts.resize_with(n + 1, PgsSolver::default);
-        self.rows_of.resize_with(n + 1, Vec::new);
+        self.parts.resize_with(n, PgsSolver::default);
+        self.rows_of.resize_with(n, Vec::new);
         let partition = &self.partition;
         let items: Vec<_> = self.parts.iter_mut().zip(&mut self.rows_of).collect();
         let island = Island {
@@ -63,25 +63,23 @@ impl Domains {
         );
     }
 
-    /// Copies the parts' impulses back into the island's rows and the domains' velocities
-    /// into the island's (the cut's movable bodies are their domains').
+    /// Copies the bands' impulses back into the island's rows and their velocities into the
+    /// island's (a seam body's are the same in both its bands after a solve; an immovable
+    /// body's are never written).
     pub(crate) fn write_back(&mut self, rows: &mut [Row], vel: &mut [Vel]) {
-        let n = self.parts.len() - 1;
         for (p, part) in self.parts.iter_mut().enumerate() {
             part.sync_rows();
             for (r, &g) in part.rows.iter().zip(&self.rows_of[p]) {
                 rows[g as usize] = *r;
             }
-            if p < n {
-                for (v, &g) in part.vel.iter().zip(&self.partition.bodies_of[p]) {
-                    vel[g as usize] = *v;
-                }
+            for (v, &g) in part.vel.iter().zip(&self.partition.bodies_of[p]) {
+                vel[g as usize] = *v;
             }
         }
     }
 
-    /// Stage 3's loop in the domain plan on up to `threads` threads (≥ 1; no more than the
-    /// domains). Returns the iterations run and the last verdict, as the one-thread loop
+    /// Stage 3's loop in the band plan on up to `threads` threads (≥ 1; no more than half
+    /// the bands, rounded up). Returns the iterations run and the last verdict, as the one-thread loop
     /// does; `report` gets the residual of every iteration.
     pub(crate) fn solve(
         &mut self,
@@ -129,7 +127,7 @@ struct Island<'a> {
     settings: PgsSettings,
 }
 
-/// Builds part `p` of `partition` of `island` into `part` (`slot`: each island body's slot
+/// Builds band `p` of `partition` of `island` into `part` (`slot`: each island body's slot
 /// in it): its bodies' velocities, its rows (`rows_of`: the island's row of each), its
 /// manifolds renumbered, then its colours and batches.
 fn build_part(
@@ -180,7 +178,7 @@ fn build_part(
     part.colour(bodies.len(), None);
 }
 
-/// A part of the velocity sweep: its solver, swept in the instruction set chosen at run time.
+/// A band of the velocity sweep: its solver, swept in the instruction set chosen at run time.
 struct VelocityPart<'a> {
     solver: &'a mut PgsSolver,
     arch: pulp::Arch,
@@ -188,17 +186,17 @@ struct VelocityPart<'a> {
 }
 
 impl Part for VelocityPart<'_> {
-    type Value = Vel;
     type Measures = Sweep;
 
     #[inline]
-    fn get(&self, slot: u32) -> Vel {
-        self.solver.vel[slot as usize]
+    fn get(&self, slot: u32) -> [f64; 3] {
+        let v = self.solver.vel[slot as usize];
+        [v.vx, v.vy, v.w]
     }
 
     #[inline]
-    fn set(&mut self, slot: u32, value: Vel) {
-        self.solver.vel[slot as usize] = value;
+    fn set(&mut self, slot: u32, [vx, vy, w]: [f64; 3]) {
+        self.solver.vel[slot as usize] = Vel { vx, vy, w };
     }
 
     fn sweep(&mut self) -> Sweep {
@@ -211,7 +209,7 @@ impl Part for VelocityPart<'_> {
     }
 }
 
-/// One sweep of one part, compiled for the instruction set chosen at run time.
+/// One sweep of one band, compiled for the instruction set chosen at run time.
 struct SweepOnce<'a> {
     solver: &'a mut PgsSolver,
     contact: bool,
