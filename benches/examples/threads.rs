@@ -3,7 +3,7 @@
 //! from the same snapshot, alternately for `--rounds` rounds: the plain one-thread solvers
 //! (unchunked sweep, position pass in problem order), and the planned sweeps on 1 thread and on
 //! `--threads` threads (islands side by side; the velocity sweep in the domain plan of
-//! `--domains` domains, default 2, or with `--domains 0` in the chunked plan; the position
+//! `--domains` domains, default 16, or with `--domains 0` in the chunked plan; the position
 //! pass likewise in domains or, with `--domains 0`, in shared colours), as `simulate
 //! --threads` runs. The pile is settled with the chunked plans (the snapshot of the earlier
 //! measurements). Prints ms per step (whole step, velocity solve, the rest) per thread
@@ -48,7 +48,7 @@ fn parse() -> Result<Option<Options>, String> {
         if a == "--help" || a == "-h" {
             println!(
                 "usage: threads [--bodies 10000] [--threads 2] [--steps 5] [--settle STEPS] \
-                 [--rounds 3] [--domains 2]  (--settle default: 250 × (bodies / 100)^¼)"
+                 [--rounds 3] [--domains 16]  (--settle default: 250 × (bodies / 100)^¼)"
             );
             return Ok(None);
         }

@@ -1,12 +1,12 @@
-//! Sweeping the bands of a [`Partition`], on one thread or several: the loop that the band
+//! Sweeping the domains of a [`Partition`], on one thread or several: the loop that the domain
 //! plans of the velocity sweep and of the position pass share.
 //!
-//! An iteration sweeps the even bands, then the odd ones. Two bands of one parity share no
-//! movable body, so the bands of a phase are swept side by side on threads, each on memory of
+//! An iteration sweeps the even domains, then the odd ones. Two domains of one parity share no
+//! movable body, so the domains of a phase are swept side by side on threads, each on memory of
 //! its own, and threads take them from a queue (a thread that runs slower takes fewer). A
-//! body of a seam between two bands has one shared value, which a band takes before its sweep
+//! body of a seam between two domains has one shared value, which a domain takes before its sweep
 //! and leaves after it; the phases order those hand-overs. That is one Gauss-Seidel order of
-//! all constraints whatever the threads, and the bands' measures are folded in sweep order,
+//! all constraints whatever the threads, and the domains' measures are folded in sweep order,
 //! so the result is bit-identical for any thread count.
 
 use std::sync::{Mutex, MutexGuard, PoisonError};
@@ -14,17 +14,17 @@ use std::sync::{Mutex, MutexGuard, PoisonError};
 use crate::partition::Partition;
 use crate::sync::{Cell3, Padded, phase_starts, run_phased};
 
-/// One band of a partition as the loop sweeps it.
+/// One domain of a partition as the loop sweeps it.
 pub(crate) trait Part: Send {
-    /// What a sweep measures, folded over the bands in sweep order.
+    /// What a sweep measures, folded over the domains in sweep order.
     type Measures: Copy + Default + Send;
     /// The value of the body in `slot` (a velocity `[vx, vy, ω]`, a pose `[x, y, angle]`).
     fn get(&self, slot: u32) -> [f64; 3];
     /// Sets the value of the body in `slot`.
     fn set(&mut self, slot: u32, value: [f64; 3]);
-    /// One sweep over the band's constraints.
+    /// One sweep over the domain's constraints.
     fn sweep(&mut self) -> Self::Measures;
-    /// Folds `m` (of a band swept after those of `into`) into `into`.
+    /// Folds `m` (of a domain swept after those of `into`) into `into`.
     fn fold(into: &mut Self::Measures, m: &Self::Measures);
 }
 
@@ -33,17 +33,17 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
-/// The bands of `n` in sweep order: the even ones, then the odd ones.
+/// The domains of `n` in sweep order: the even ones, then the odd ones.
 fn sweep_order(n: usize) -> impl Iterator<Item = usize> {
     (0..n).step_by(2).chain((1..n).step_by(2))
 }
 
-/// Threads that can work on `n` bands side by side: no more than the even bands.
+/// Threads that can work on `n` domains side by side: no more than the even domains.
 pub(crate) fn useful_threads(threads: usize, n: usize) -> usize {
     threads.clamp(1, n.div_ceil(2).max(1))
 }
 
-/// Sweeps `parts` (the bands of `partition`) on up to `threads` threads (≥ 1; no more than
+/// Sweeps `parts` (the domains of `partition`) on up to `threads` threads (≥ 1; no more than
 /// [`useful_threads`]) until `stop(iteration, measures)` (0-based) holds or `max_iterations`
 /// have run. Returns every iteration's measures, folded in sweep order; the parts end with
 /// the seams' last values.
@@ -56,7 +56,7 @@ pub(crate) fn sweep_parts<P: Part>(
 ) -> Vec<P::Measures> {
     let n = parts.len();
     let (links, ranges) = (&partition.links, &partition.link_ranges);
-    // The seams' values, from the first band that holds each (all hold the same).
+    // The seams' values, from the first domain that holds each (all hold the same).
     let shared: Vec<Cell3> = (0..partition.shared.len())
         .map(|_| Cell3::default())
         .collect();
@@ -66,8 +66,8 @@ pub(crate) fn sweep_parts<P: Part>(
         }
     }
     let order: Vec<usize> = sweep_order(n).collect();
-    // Each band's lock and measures on cache lines of their own: the threads that sweep
-    // neighbouring bands do not pass lines back and forth.
+    // Each domain's lock and measures on cache lines of their own: the threads that sweep
+    // neighbouring domains do not pass lines back and forth.
     let parts: Vec<Padded<Mutex<&mut P>>> =
         parts.iter_mut().map(|p| Padded(Mutex::new(p))).collect();
     let slots: [Vec<Padded<Mutex<P::Measures>>>; 2] =
@@ -101,7 +101,7 @@ pub(crate) fn sweep_parts<P: Part>(
         &process,
         &judge,
     );
-    // The seams' last values into every band that holds them.
+    // The seams' last values into every domain that holds them.
     for (part, range) in parts.iter().zip(ranges) {
         let mut part = lock(&part.0);
         for &(s, k) in &links[range.clone()] {

@@ -10,14 +10,15 @@
 //! the stop rule holds) → **store impulses** (write them back, natural-map residual).
 //!
 //! **Threads.** An island of [`PgsSettings::parallel_min_points`] points or more (default
-//! 2048) is swept in the domain plan ([`PgsSettings::domains`], default 2;
-//! [`PgsSettings::threads`], `pgs:threads=N`): its bodies cut into domains along their Z-order,
-//! each domain's manifolds swept as an island of its own, domains side by side on threads,
-//! then the manifolds across the cuts. With `domains = 0` it is swept colour by colour in
-//! fixed chunks instead. The position pass sweeps such islands colour by colour in chunks
-//! ([`PgsPositionSettings::threads`]): threads claim the chunks of a colour from one queue and
-//! a colour starts once the previous one is done. Every part's measures are folded in a fixed
-//! order, so the result is bit-identical for any thread count. Smaller islands run on the
+//! 2048) is swept in the domain plan ([`PgsSettings::domains`], default 16;
+//! [`PgsSettings::threads`], `pgs:threads=N`): its movable bodies cut into bands of a
+//! breadth-first walk of their contacts, each band's manifolds swept as an island of its own,
+//! the even bands side by side on threads, then the odd ones (a band's manifolds move bodies of
+//! that band and of its neighbours only). With `domains = 0` it is swept colour by colour in
+//! fixed chunks instead. The position pass sweeps such islands in the same kind of domains
+//! ([`PgsPositionSettings::domains`], [`PgsPositionSettings::threads`]). Every part's measures
+//! are folded in a fixed order, so the result is bit-identical for any thread count. Smaller
+//! islands run on the
 //! calling thread; given all of a step's islands at once
 //! ([`VelocitySolver::solve_many`](deepcontact_core::VelocitySolver::solve_many), as the world
 //! does), islands of up to 32 points are packed into the lanes of shared batches, up to eight

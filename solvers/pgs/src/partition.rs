@@ -1,44 +1,44 @@
-//! An island cut into bands of its contact graph: the partition that the band plans of the
-//! velocity sweep ([`crate::velocity_domains`]) and of the position pass
+//! An island cut into domains, bands of its contact graph: the partition that the domain plans
+//! of the velocity sweep ([`crate::velocity_domains`]) and of the position pass
 //! ([`crate::position_domains`]) sweep side by side.
 //!
 //! The movable bodies are layered by a breadth-first walk of the constraints between them
 //! (from the lowest-numbered body; the solver numbers bodies in Z-order, so that is a corner
-//! of the island), and runs of layers holding about as many constraints each make `n` bands.
-//! A constraint belongs to the band of its later movable body. A breadth-first walk puts the
-//! two bodies of a constraint in the same layer or in neighbouring ones, so a band's
-//! constraints move bodies of that band and of the one before it only: two bands of the same
-//! parity share no movable body, and an iteration sweeps the even bands side by side, then
-//! the odd ones. A body that two bands move (a body of the seam between them) has one shared
-//! value that each band takes before its sweep and leaves after it. Immovable bodies belong
-//! to no band: every part that reads one gets a copy (they are never written).
+//! of the island), and runs of layers holding about as many constraints each make `n` domains.
+//! A constraint belongs to the domain of its later movable body. A breadth-first walk puts the
+//! two bodies of a constraint in the same layer or in neighbouring ones, so a domain's
+//! constraints move bodies of that domain and of the one before it only: two domains of the same
+//! parity share no movable body, and an iteration sweeps the even domains side by side, then
+//! the odd ones. A body that two domains move (a body of the seam between them) has one shared
+//! value that each domain takes before its sweep and leaves after it. Immovable bodies belong
+//! to no domain: every part that reads one gets a copy (they are never written).
 
 use std::ops::Range;
 
 /// A constraint's two bodies as the partition sees them: index and whether it can move.
 pub(crate) type Ends = [(u32, bool); 2];
 
-/// The most bands: a body's parts are bits of a `u64`.
+/// The most domains: a body's parts are bits of a `u64`.
 pub const MAX_DOMAINS: usize = 63;
 
 /// The parts of an island (buffers reused from one build to the next).
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Partition {
-    /// The number of bands (parts); some may be empty.
+    /// The number of domains (parts); some may be empty.
     pub(crate) n: usize,
-    /// The band of each constraint.
+    /// The domain of each constraint.
     pub(crate) part_of: Vec<u32>,
-    /// Per band, its bodies in ascending island order: the bodies of its constraints.
+    /// Per domain, its bodies in ascending island order: the bodies of its constraints.
     pub(crate) bodies_of: Vec<Vec<u32>>,
-    /// The island bodies that two bands move, ascending: the shared values.
+    /// The island bodies that two domains move, ascending: the shared values.
     pub(crate) shared: Vec<u32>,
-    /// Per band, in its run of `links`: (slot in the band, index in `shared`).
+    /// Per domain, in its run of `links`: (slot in the domain, index in `shared`).
     pub(crate) links: Vec<(u32, u32)>,
-    /// Per band, its run of `links`.
+    /// Per domain, its run of `links`.
     pub(crate) link_ranges: Vec<Range<usize>>,
     /// The number of the island's bodies.
     bodies: usize,
-    /// Scratch: each body's layer (`u32::MAX`: not reached), then its band.
+    /// Scratch: each body's layer (`u32::MAX`: not reached), then its domain.
     layer: Vec<u32>,
     /// Scratch: the first neighbour of each body in `neighbours`, then the end.
     first: Vec<u32>,
@@ -46,14 +46,14 @@ pub(crate) struct Partition {
     neighbours: Vec<u32>,
     /// Scratch: the breadth-first queue.
     queue: Vec<u32>,
-    /// Scratch: the band of each layer, then of each body.
-    band: Vec<u32>,
+    /// Scratch: the domain of each layer, then of each body.
+    domain: Vec<u32>,
     /// Scratch: the parts of each body, as bits.
     used: Vec<u64>,
 }
 
 impl Partition {
-    /// Cuts `bodies` bodies into `n` bands (1 to [`MAX_DOMAINS`], clamped) for the
+    /// Cuts `bodies` bodies into `n` domains (1 to [`MAX_DOMAINS`], clamped) for the
     /// constraints `0..count` with the given ends.
     pub(crate) fn build(
         &mut self,
@@ -67,14 +67,14 @@ impl Partition {
         self.bodies = bodies;
         self.link_graph(count, &ends);
         let layers = self.layer_bodies();
-        self.band_layers(n, layers, count, &ends);
-        // A constraint's band: its later movable body's (none movable: band 0, which leaves
+        self.domain_layers(n, layers, count, &ends);
+        // A constraint's domain: its later movable body's (none movable: domain 0, which leaves
         // it as it is).
-        let band = &self.band;
+        let domain = &self.domain;
         let key = |[(a, ma), (b, mb)]: Ends| match (ma, mb) {
-            (true, true) => band[a as usize].max(band[b as usize]),
-            (true, false) => band[a as usize],
-            (false, true) => band[b as usize],
+            (true, true) => domain[a as usize].max(domain[b as usize]),
+            (true, false) => domain[a as usize],
+            (false, true) => domain[b as usize],
             (false, false) => 0,
         };
         let mut part_of = std::mem::take(&mut self.part_of);
@@ -155,18 +155,27 @@ impl Partition {
                     }
                 }
             }
-            let last = self.queue.last().map_or(layers, |&b| self.layer[b as usize]);
+            let last = self
+                .queue
+                .last()
+                .map_or(layers, |&b| self.layer[b as usize]);
             layers = last + 1;
         }
         layers as usize
     }
 
     /// Runs of layers holding about `count / n` constraints each (counted at their later
-    /// movable body's layer) into bands; each body's band into `band`. Neighbouring layers
-    /// get the same band or neighbouring ones, so a constraint's bodies do too.
-    fn band_layers(&mut self, n: usize, layers: usize, count: usize, ends: &impl Fn(usize) -> Ends) {
-        self.band.clear();
-        self.band.resize(layers, 0);
+    /// movable body's layer) into domains; each body's domain into `domain`. Neighbouring layers
+    /// get the same domain or neighbouring ones, so a constraint's bodies do too.
+    fn domain_layers(
+        &mut self,
+        n: usize,
+        layers: usize,
+        count: usize,
+        ends: &impl Fn(usize) -> Ends,
+    ) {
+        self.domain.clear();
+        self.domain.resize(layers, 0);
         let layer = &self.layer;
         for c in 0..count {
             let at = match ends(c) {
@@ -174,22 +183,22 @@ impl Partition {
                 [(a, true), _] | [_, (a, true)] => layer[a as usize],
                 _ => continue,
             };
-            self.band[at as usize] += 1;
+            self.domain[at as usize] += 1;
         }
-        // A layer opens the next band once the constraints before it reach that band's share.
-        let (mut seen, mut band) = (0usize, 0usize);
-        for k in &mut self.band {
-            if band + 1 < n && seen > 0 && seen * n >= (band + 1) * count {
-                band += 1;
+        // A layer opens the next domain once the constraints before it reach that domain's share.
+        let (mut seen, mut domain) = (0usize, 0usize);
+        for k in &mut self.domain {
+            if domain + 1 < n && seen > 0 && seen * n >= (domain + 1) * count {
+                domain += 1;
             }
             seen += *k as usize;
-            *k = band as u32;
+            *k = domain as u32;
         }
-        // Each body's band in place of its layer (a body no constraint moves keeps band 0).
+        // Each body's domain in place of its layer (a body no constraint moves keeps domain 0).
         for l in &mut self.layer {
-            *l = self.band.get(*l as usize).copied().unwrap_or(0);
+            *l = self.domain.get(*l as usize).copied().unwrap_or(0);
         }
-        std::mem::swap(&mut self.layer, &mut self.band);
+        std::mem::swap(&mut self.layer, &mut self.domain);
     }
 
     /// Runs `build(p, item, slot)` for the `p`-th item of `items` (one per part) on up to
@@ -237,7 +246,7 @@ impl Partition {
         });
     }
 
-    /// The bodies that two bands move, and each band's links to their shared values.
+    /// The bodies that two domains move, and each domain's links to their shared values.
     fn link_seams(&mut self, count: usize, ends: &impl Fn(usize) -> Ends) {
         // `queue` as each body's index in `shared` (`u32::MAX`: not shared).
         self.queue.clear();
@@ -278,9 +287,9 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_chain_is_cut_into_balanced_bands_with_one_seam_body_between_neighbours() {
+    fn a_chain_is_cut_into_balanced_domains_with_one_seam_body_between_neighbours() {
         // Bodies 0..=10 in a chain (constraint c joins c and c + 1), body 5 immovable: the
-        // walk from body 0 stops at 5, the second from 6 goes on; 3 bands of about 10 / 3
+        // walk from body 0 stops at 5, the second from 6 goes on; 3 domains of about 10 / 3
         // constraints.
         let moves = |b: u32| b != 5;
         let ends = |c: usize| {
@@ -298,23 +307,27 @@ mod tests {
         }
         assert_eq!(counts.iter().sum::<usize>(), 10);
         assert!(counts.iter().all(|&k| (2..=5).contains(&k)), "{counts:?}");
-        // Bands follow the chain: a constraint's band is that of its later body, no earlier
-        // than the band before.
-        assert!(p.part_of.windows(2).all(|w| w[0] <= w[1] && w[1] <= w[0] + 1));
-        // Every movable body in one band's list or, at a seam, in two neighbouring ones; the
-        // immovable body 5 in the lists of the bands that read it, never shared.
+        // Domains follow the chain: a constraint's domain is that of its later body, no earlier
+        // than the domain before.
+        assert!(
+            p.part_of
+                .windows(2)
+                .all(|w| w[0] <= w[1] && w[1] <= w[0] + 1)
+        );
+        // Every movable body in one domain's list or, at a seam, in two neighbouring ones; the
+        // immovable body 5 in the lists of the domains that read it, never shared.
         for b in (0..11u32).filter(|&b| moves(b)) {
             let holders: Vec<usize> = (0..3).filter(|&d| p.bodies_of[d].contains(&b)).collect();
             match holders[..] {
                 [_] => assert!(!p.shared.contains(&b), "body {b}"),
                 [x, y] => assert!(y == x + 1 && p.shared.contains(&b), "body {b}"),
-                _ => panic!("body {b} in bands {holders:?}"),
+                _ => panic!("body {b} in domains {holders:?}"),
             }
         }
         // Layers 0–4, then 5 (body 5 alone), then 6–10; the first seam falls on the immovable
         // body, the second shares body 7.
         assert_eq!(p.shared, [7]);
-        // Every link joins the same body in its band and in the shared list.
+        // Every link joins the same body in its domain and in the shared list.
         for (d, range) in p.link_ranges.iter().enumerate() {
             for &(s, k) in &p.links[range.clone()] {
                 assert_eq!(p.bodies_of[d][s as usize], p.shared[k as usize]);
@@ -340,10 +353,10 @@ mod tests {
     }
 
     #[test]
-    fn a_grid_walked_from_its_corner_has_no_constraint_across_two_bands() {
+    fn a_grid_walked_from_its_corner_has_no_constraint_across_two_domains() {
         // A 12 × 9 grid of bodies (row-major) with constraints to the right and upward
         // neighbours, its bottom row immovable except for the corner: walks layer the bodies
-        // by their distance from the corner, and a constraint's bodies lie in one band or in
+        // by their distance from the corner, and a constraint's bodies lie in one domain or in
         // two neighbouring ones.
         let (w, h) = (12u32, 9u32);
         let moves = |b: u32| b == 0 || b >= w;
@@ -373,7 +386,7 @@ mod tests {
                             .filter(|&d| p.bodies_of[d as usize].binary_search(&b).is_ok())
                             .collect();
                         assert!(holders.contains(&q), "constraint {c}");
-                        assert!(holders.len() <= 2, "body {b} in bands {holders:?}");
+                        assert!(holders.len() <= 2, "body {b} in domains {holders:?}");
                         assert!(holders.iter().all(|&d| d.abs_diff(q) <= 1));
                     }
                 }
@@ -382,20 +395,22 @@ mod tests {
             for &q in &p.part_of {
                 counts[q as usize] += 1;
             }
-            // A band closes on the layer that reaches its share, so it misses the share by
+            // A domain closes on the layer that reaches its share, so it misses the share by
             // less than a layer's constraints (a diagonal of the grid: under 3 h).
             let share = pairs.len() / n;
             assert!(
-                counts.iter().all(|&k| k > 0 && k.abs_diff(share) < 3 * h as usize),
-                "{n} bands: {counts:?}"
+                counts
+                    .iter()
+                    .all(|&k| k > 0 && k.abs_diff(share) < 3 * h as usize),
+                "{n} domains: {counts:?}"
             );
         }
     }
 
     #[test]
     fn build_parts_visits_every_part_once_with_its_own_item_and_slots_on_any_thread_count() {
-        // 7 bands of a chain, built on 1 to 9 threads with one scratch kept throughout (so a
-        // buffer left dirty by a band would show in a later one): each band gets its own item,
+        // 7 domains of a chain, built on 1 to 9 threads with one scratch kept throughout (so a
+        // buffer left dirty by a domain would show in a later one): each domain gets its own item,
         // and exactly its own bodies' slots.
         let ends = |c: usize| [(c as u32, true), (c as u32 + 1, true)];
         let mut p = Partition::default();
@@ -419,13 +434,13 @@ mod tests {
     }
 
     #[test]
-    fn one_band_shares_nothing_and_empty_bands_lose_nothing() {
+    fn one_domain_shares_nothing_and_empty_domains_lose_nothing() {
         let ends = |c: usize| [(c as u32, true), (c as u32 + 1, true)];
         let mut p = Partition::default();
         p.build(1, 6, 5, ends);
         assert!(p.part_of.iter().all(|&q| q == 0));
         assert!(p.shared.is_empty() && p.links.is_empty());
-        // More bands than constraints: some stay empty, nothing is lost.
+        // More domains than constraints: some stay empty, nothing is lost.
         p.build(9, 6, 5, ends);
         assert_eq!(p.part_of.len(), 5);
         assert_eq!(p.link_ranges.len(), 9);

@@ -1,7 +1,7 @@
-//! The band plan of the position pass of a large island, on one thread or several.
+//! The domain plan of the position pass of a large island, on one thread or several.
 //!
-//! The island is cut into bands ([`Partition`]), as the velocity sweep's; each band visits its
-//! points in the island's order (no colours: one thread sweeps a band) on poses of its own,
+//! The island is cut into domains ([`Partition`]), as the velocity sweep's; each domain visits its
+//! points in the island's order (no colours: one thread sweeps a domain) on poses of its own,
 //! and [`sweep_parts`] runs the iterations. The pass's measures are minima
 //! and maxima, so only the order of the corrections decides the bits, and that order is the
 //! same for every thread count.
@@ -13,22 +13,22 @@ use crate::domain_sweep::{Part, sweep_parts};
 use crate::partition::Partition;
 use crate::position::{PassMeasures, PosRow, correct_point};
 
-/// The bands of the position pass's band plan (buffers reused from one island to the next).
+/// The domains of the position pass's domain plan (buffers reused from one island to the next).
 #[derive(Debug, Clone, Default)]
 pub(crate) struct PositionDomains {
-    /// Which points and bodies each band holds, and the seams between them.
+    /// Which points and bodies each domain holds, and the seams between them.
     partition: Partition,
-    /// Per band, its rows (bodies renumbered to the band's slots), in the island's order.
+    /// Per domain, its rows (bodies renumbered to the domain's slots), in the island's order.
     rows: Vec<Vec<PosRow>>,
-    /// Per band, its bodies' poses.
+    /// Per domain, its bodies' poses.
     poses: Vec<Vec<Pose>>,
-    /// Per building thread, each island body's slot in the band it builds (scratch).
+    /// Per building thread, each island body's slot in the domain it builds (scratch).
     slots: Vec<Vec<u32>>,
 }
 
 impl PositionDomains {
-    /// Cuts the island (`rows` and `poses`, bodies in Z-order) into `n` bands (1 to
-    /// [`MAX_DOMAINS`](crate::MAX_DOMAINS), clamped), the bands built side by side on up to
+    /// Cuts the island (`rows` and `poses`, bodies in Z-order) into `n` domains (1 to
+    /// [`MAX_DOMAINS`](crate::MAX_DOMAINS), clamped), the domains built side by side on up to
     /// `threads` threads (≥ 1).
     pub(crate) fn build(&mut self, n: usize, threads: usize, rows: &[PosRow], poses: &[Pose]) {
         self.partition
@@ -51,7 +51,7 @@ impl PositionDomains {
         });
     }
 
-    /// Runs the pass on up to `threads` threads (≥ 1; no more than half the bands, rounded up)
+    /// Runs the pass on up to `threads` threads (≥ 1; no more than half the domains, rounded up)
     /// under the stop
     /// rule of `settings`, and writes the poses back (`poses`: the island's, as given to
     /// [`Self::build`]).
@@ -85,7 +85,7 @@ impl PositionDomains {
         if let Some((it, last)) = passes.iter().enumerate().next_back() {
             last.judge(it as u32, settings, report);
         }
-        // Each body from its bands (a seam body's poses are the same in both after the pass;
+        // Each body from its domains (a seam body's poses are the same in both after the pass;
         // an immovable body's are never written).
         for (own, bodies) in self.poses.iter().zip(&self.partition.bodies_of) {
             for (pose, &b) in own.iter().zip(bodies) {
@@ -95,7 +95,7 @@ impl PositionDomains {
     }
 }
 
-/// A band of the pass: its rows and its poses.
+/// A domain of the pass: its rows and its poses.
 struct PositionPart<'a> {
     rows: &'a [PosRow],
     poses: &'a mut [Pose],

@@ -17,8 +17,8 @@ pub fn register(registry: &mut Registry) {
          order=coloured|sequential, lanes=true|false, start=projected|raw, threads=N (default 1; \
          bit-identical for any N), parallel_from=POINTS (islands from this size are swept in \
          fixed chunks that threads share; default 2048), domains=N (such islands cut into N \
-         domains that threads sweep side by side, then the manifolds across the cuts; 0: \
-         colours shared in chunks instead; default 2)",
+         bands of their contact graph, the even ones swept side by side on threads, then the \
+         odd ones; 0: colours shared in chunks instead; default 16)",
         |p| {
             let d = PgsSettings::default();
             let block_solver = p.bool("block", d.block_solver)?;

@@ -2,7 +2,6 @@
 //! velocity, a pose, a set of measures) and a queue of phased work items.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering as Mem};
-use std::sync::{Mutex, PoisonError};
 
 /// Three `f64`s that threads share, as bits in relaxed atomics (plain loads and stores on
 /// x86-64 and AArch64): each is written by one thread within a phase, and [`run_phased`]'s
@@ -51,28 +50,17 @@ fn wait_until(ready: impl Fn() -> bool) {
     }
 }
 
-/// A thread's home segment of the phase it is claimed in: which phase (counted over the
-/// whole run, so a claim made for an earlier one is told apart), and the items taken from its
-/// front (by its owner) and from its back (by helpers).
-#[derive(Debug, Default)]
-struct Segment {
-    phase: usize,
-    front: usize,
-    back: usize,
-}
-
 /// Runs iterations of phased work on `threads` threads (≥ 1; the caller is one of them).
 ///
 /// An iteration is `phase_starts.last()` items in phases (`phase_starts`: the first item of
 /// each phase, ascending from 0, then the item count). Every thread walks the phases in
-/// order; each phase is split into one contiguous home segment per thread. A thread takes
-/// the items of its own segment from the front, then helps with the others' from their back
-/// (so a thread that runs slower leaves the end of its segment to a faster one), then waits
-/// until every item of the phase is done. The thread that completes an iteration's last item
-/// calls `judge(iteration, parity)` (0-based; `parity` = iteration mod 2, which
-/// `process(item, parity)` also gets); `true` stops the run. A thread that loses its core
-/// holds up at most the one item it claimed. What an item computes must not depend on which
-/// thread runs it. Returns the iterations run.
+/// order; each phase is split into one contiguous home segment per thread, and a thread
+/// claims the items of its own segment first, then helps with the others' (each segment has
+/// its own counter), then waits until every item of the phase is done. The thread that
+/// completes an iteration's last item calls `judge(iteration, parity)` (0-based; `parity` =
+/// iteration mod 2, which `process(item, parity)` also gets); `true` stops the run. A thread
+/// that loses its core holds up at most the one item it claimed. What an item computes must
+/// not depend on which thread runs it. Returns the iterations run.
 pub(crate) fn run_phased(
     threads: usize,
     max_iterations: u32,
@@ -89,37 +77,39 @@ pub(crate) fn run_phased(
     let home = |p: usize, t: usize| {
         phase_starts[p] + (phase_starts[p + 1] - phase_starts[p]) * t / threads
     };
-    let segments: Vec<Padded<Mutex<Segment>>> =
-        (0..threads).map(|_| Padded::default()).collect();
+    // Per thread: where each phase's segment starts in its counter's count of one iteration,
+    // and the count of a whole iteration.
+    let offsets: Vec<Vec<usize>> = (0..threads)
+        .map(|t| {
+            let mut acc = 0;
+            let mut v: Vec<usize> = (0..phases)
+                .map(|p| {
+                    let at = acc;
+                    acc += home(p, t + 1) - home(p, t);
+                    at
+                })
+                .collect();
+            v.push(acc);
+            v
+        })
+        .collect();
+    let cursors: Vec<Padded<AtomicUsize>> =
+        (0..threads).map(|_| Padded(AtomicUsize::new(0))).collect();
     let (done, judged) = (Padded(AtomicUsize::new(0)), Padded(AtomicUsize::new(0)));
     let stopped = AtomicBool::new(false);
-    // Claims one item of segment t in phase p of iteration it, if one is left: from the front
-    // for its owner `me`, from the back for a helper. A segment still marked with an earlier
-    // phase is fresh (every item of that phase is done before a thread claims in this one).
-    let claim = |me: usize, t: usize, it: usize, p: usize| -> Option<usize> {
-        let (first, len) = (home(p, t), home(p, t + 1) - home(p, t));
-        if len == 0 {
-            return None;
+    // Claims one item of segment t in phase p of iteration it, if one is left.
+    let claim = |t: usize, it: usize, p: usize| -> Option<usize> {
+        let first = it * offsets[t][phases] + offsets[t][p];
+        let end = first + home(p, t + 1) - home(p, t);
+        let cursor = &cursors[t].0;
+        let mut c = cursor.load(Mem::Relaxed);
+        while c < end {
+            match cursor.compare_exchange_weak(c, c + 1, Mem::Relaxed, Mem::Relaxed) {
+                Ok(_) => return Some(home(p, t) + (c - first)),
+                Err(now) => c = now,
+            }
         }
-        let phase = it * phases + p + 1;
-        let mut seg = segments[t].0.lock().unwrap_or_else(PoisonError::into_inner);
-        if seg.phase < phase {
-            *seg = Segment {
-                phase,
-                front: 0,
-                back: 0,
-            };
-        }
-        if seg.phase > phase || seg.front + seg.back == len {
-            return None;
-        }
-        if t == me {
-            seg.front += 1;
-            Some(first + seg.front - 1)
-        } else {
-            seg.back += 1;
-            Some(first + len - seg.back)
-        }
+        None
     };
     let work = |me: usize| {
         for it in 0..max_iterations as usize {
@@ -135,7 +125,7 @@ pub(crate) fn run_phased(
                 wait_until(|| done.0.load(Mem::Acquire) >= need);
                 for k in 0..threads {
                     let t = (me + k) % threads;
-                    while let Some(item) = claim(me, t, it, p) {
+                    while let Some(item) = claim(t, it, p) {
                         process(item, it % 2);
                         if done.0.fetch_add(1, Mem::AcqRel) + 1 == (it + 1) * total {
                             if judge(it as u32, it % 2) {
@@ -183,6 +173,7 @@ pub(crate) fn phase_starts(counts: impl IntoIterator<Item = usize>) -> Vec<usize
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::sync::Mutex;
 
     #[test]
     fn phased_items_run_in_phase_order_and_the_judge_stops_the_run() {
@@ -227,5 +218,44 @@ mod tests {
                 3
             );
         }
+    }
+
+    #[test]
+    fn a_slow_thread_leaves_the_rest_of_its_segment_to_a_faster_one() {
+        // One phase of 8 items on 2 threads, the spawned thread's items 7 times as slow as the
+        // caller's: the caller takes its own 4 items, then the spawned thread's that are
+        // still left, so in every iteration the spawned thread ran one item at most (none if
+        // it started late) and the caller the rest.
+        let caller = std::thread::current().id();
+        let ran_by_caller: Vec<Vec<AtomicBool>> = (0..3)
+            .map(|_| (0..8).map(|_| AtomicBool::new(false)).collect())
+            .collect();
+        let iteration = AtomicUsize::new(0);
+        let process = |item: usize, _: usize| {
+            let mine = std::thread::current().id() == caller;
+            let ms = if mine { 3 } else { 21 };
+            std::thread::sleep(std::time::Duration::from_millis(ms));
+            let it = iteration.load(Mem::SeqCst);
+            ran_by_caller[it][item].store(mine, Mem::SeqCst);
+        };
+        let judge = |it: u32, _: usize| {
+            iteration.store(it as usize + 1, Mem::SeqCst);
+            false
+        };
+        assert_eq!(run_phased(2, 3, &[0, 8], &process, &judge), 3);
+        for (it, items) in ran_by_caller.iter().enumerate() {
+            let by: Vec<bool> = items.iter().map(|b| b.load(Mem::SeqCst)).collect();
+            assert!(by[..4].iter().all(|&m| m), "iteration {it}: {by:?}");
+            let helped = by[4..].iter().filter(|&&m| m).count();
+            assert!(helped >= 3, "iteration {it}: {by:?}");
+        }
+        // Once running, the spawned thread starts its segment while the caller is still on
+        // its own items (12 ms).
+        assert!(
+            ran_by_caller
+                .iter()
+                .any(|items| !items[4].load(Mem::SeqCst)),
+            "the spawned thread never ran an item"
+        );
     }
 }

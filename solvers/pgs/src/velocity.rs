@@ -49,14 +49,17 @@ pub struct PgsSettings {
     /// the unchunked sweep, only `Σ Δλ²` (the L2 norm) is summed in another order.
     pub parallel_min_points: usize,
     /// Domains of the domain plan for islands of [`parallel_min_points`](Self::parallel_min_points)
-    /// points or more (default 2; 0: the chunked plan instead; more than 63 count as 63, and the
-    /// registry refuses them). The island's bodies are cut into this many runs of their Z-order
-    /// holding about as many manifolds each; each domain's manifolds are swept as an island of
-    /// their own — threads sweep domains side by side, each on memory no other thread writes — then
-    /// the few manifolds across the cuts on one thread. No more threads than domains work on an
-    /// island. Another Gauss-Seidel order than the unchunked sweep's, so other (equally valid)
-    /// bits; the same bits for any thread count. The chunked plan (`0`) keeps the unchunked sweep's
-    /// bits but shares every colour between threads through atomics, which scales worse.
+    /// points or more (default 16; 0: the chunked plan instead; more than 63 count as 63, and
+    /// the registry refuses them). The island's movable bodies are layered by a breadth-first
+    /// walk of their contacts and cut into this many bands of layers holding about as many
+    /// manifolds each, each band's manifolds swept as an island of its own; a manifold's
+    /// bodies lie in one band or in two neighbouring ones, so an iteration sweeps the even
+    /// bands side by side on threads, then the odd ones, and threads take the bands of a phase
+    /// from a queue (a slower thread takes fewer). Up to half the domains, rounded up, work on
+    /// an island. Another Gauss-Seidel order than the unchunked sweep's, so other (equally
+    /// valid) bits; the same bits for any thread count. The chunked plan (`0`) keeps the
+    /// unchunked sweep's bits but shares every colour between threads through atomics, which
+    /// scales worse.
     pub domains: usize,
 }
 
@@ -70,7 +73,7 @@ impl Default for PgsSettings {
             raw_start: false,
             threads: 1,
             parallel_min_points: 2048,
-            domains: 2,
+            domains: 16,
         }
     }
 }
@@ -294,7 +297,7 @@ pub struct PgsSolver {
     /// The instruction set the sweep loops run in, detected once when the solver is made:
     /// AVX2 + FMA (x86-64-v3) where the CPU has them, else the baseline. Same bits either way.
     pub(crate) arch: pulp::Arch,
-    /// The domain plan's parts ([`PgsSettings::domains`]; empty otherwise).
+    /// The domain plan's domains ([`PgsSettings::domains`]; empty otherwise).
     domains: crate::velocity_domains::Domains,
     /// The solvers of the small islands solved together ([`crate::velocity_lanes`]), one per
     /// island of a step, kept for the next.
@@ -1698,14 +1701,14 @@ mod tests {
     }
 
     #[test]
-    fn domain_plan_is_bit_identical_for_one_to_four_threads() {
-        // Every norm, 1 to 4 domains (4 domains on the 100-body pile leave a large cut), a
+    fn domain_plan_is_bit_identical_for_one_to_four_threads_and_up_to_eight_domains() {
+        // Every norm, 1 to 8 domains (8 give all four threads a domain of each phase), a
         // start with load on every point; the residuals of every iteration are compared too.
         for problem in pile_and_pyramid() {
             let start = loaded_start(&problem);
             for stop in tight_stops() {
                 let norm = stop.norm;
-                for domains in 1..=4 {
+                for domains in [1, 2, 3, 5, 8] {
                     let runs: Vec<_> = (1..=4)
                         .map(|threads| {
                             let settings = PgsSettings {
@@ -1732,8 +1735,8 @@ mod tests {
 
     #[test]
     fn domain_plan_gives_the_same_bits_on_one_to_five_real_threads() {
-        // 8 bands of the 100-body pile on up to five threads (more threads than the 4 even
-        // bands work on none).
+        // 8 domains of the 100-body pile on up to five threads (more threads than the 4 even
+        // domains work on none).
         let settings = PgsSettings {
             parallel_min_points: 0,
             ..PgsSettings::default()
@@ -1801,9 +1804,9 @@ mod tests {
     }
 
     #[test]
-    fn bands_share_movable_bodies_only_with_their_neighbours() {
-        // Every manifold in exactly one band, every row once; a movable body moved by one band
-        // or by two neighbouring ones (then it is a seam body, linked in both), so two bands
+    fn domains_share_movable_bodies_only_with_their_neighbours() {
+        // Every manifold in exactly one domain, every row once; a movable body moved by one domain
+        // or by two neighbouring ones (then it is a seam body, linked in both), so two domains
         // of one parity never move the same body.
         let problem = pile_problem();
         let mut solver = PgsSolver::with_settings(PgsSettings {
@@ -1822,7 +1825,7 @@ mod tests {
                 solver.settings,
             );
             let manifolds: usize = d.parts.iter().map(|p| p.manifolds.len()).sum();
-            assert_eq!(manifolds, solver.manifolds.len(), "{n} bands");
+            assert_eq!(manifolds, solver.manifolds.len(), "{n} domains");
             let mut rows: Vec<u32> = d.rows_of.iter().flatten().copied().collect();
             rows.sort_unstable();
             assert_eq!(rows, (0..problem.len() as u32).collect::<Vec<_>>());
@@ -1838,18 +1841,18 @@ mod tests {
                 }
             }
             let mut seams = Vec::new();
-            for (body, bands) in movers.iter().enumerate() {
-                match bands[..] {
+            for (body, domains) in movers.iter().enumerate() {
+                match domains[..] {
                     [] | [_] => {}
                     [p, q] => {
-                        assert_eq!(p.abs_diff(q), 1, "body {body} in bands {p} and {q}");
+                        assert_eq!(p.abs_diff(q), 1, "body {body} in domains {p} and {q}");
                         seams.push(body as u32);
                     }
-                    _ => panic!("body {body} moved by bands {bands:?}"),
+                    _ => panic!("body {body} moved by domains {domains:?}"),
                 }
             }
-            assert_eq!(d.partition.shared, seams, "{n} bands");
-            // Each band links exactly its seam bodies to their shared values.
+            assert_eq!(d.partition.shared, seams, "{n} domains");
+            // Each domain links exactly its seam bodies to their shared values.
             for (p, range) in d.partition.link_ranges.iter().enumerate() {
                 let linked: Vec<u32> = d.partition.links[range.clone()]
                     .iter()
@@ -1864,11 +1867,14 @@ mod tests {
                     .copied()
                     .filter(|&b| movers[b as usize].contains(&p))
                     .collect();
-                assert_eq!(linked, own, "band {p} of {n}");
+                assert_eq!(linked, own, "domain {p} of {n}");
             }
             let used = d.parts.iter().filter(|p| !p.manifolds.is_empty()).count();
-            assert_eq!(used, n, "{n} bands of a 100-body pile: {used} hold manifolds");
-            assert_eq!(seams.is_empty(), n == 1, "{n} bands");
+            assert_eq!(
+                used, n,
+                "{n} domains of a 100-body pile: {used} hold manifolds"
+            );
+            assert_eq!(seams.is_empty(), n == 1, "{n} domains");
         }
     }
 }

@@ -1,7 +1,7 @@
-//! The band plan of the velocity sweep of a large island, on one thread or several.
+//! The domain plan of the velocity sweep of a large island, on one thread or several.
 //!
-//! The island is cut into bands ([`Partition`]); each band is an island of its own for the
-//! sweep — its rows, its bodies (renumbered in order), its colours and batches — so a band is
+//! The island is cut into domains ([`Partition`]); each domain is an island of its own for the
+//! sweep — its rows, its bodies (renumbered in order), its colours and batches — so a domain is
 //! swept by the ordinary one-thread loop (lanes and all) on memory no other thread touches
 //! while it runs, and [`sweep_parts`] runs the iterations.
 
@@ -11,24 +11,24 @@ use crate::domain_sweep::{Part, sweep_parts};
 use crate::partition::Partition;
 use crate::velocity::{Manifold, PgsSettings, PgsSolver, Row, Sweep, Vel, Verdict, judge, movable};
 
-/// The bands of the band plan, rebuilt for every solve (buffers reused).
+/// The domains of the domain plan, rebuilt for every solve (buffers reused).
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Domains {
-    /// Which manifolds and bodies each band holds, and the seams between them.
+    /// Which manifolds and bodies each domain holds, and the seams between them.
     pub(crate) partition: Partition,
-    /// The bands, each a one-thread solver holding its manifolds.
+    /// The domains, each a one-thread solver holding its manifolds.
     pub(crate) parts: Vec<PgsSolver>,
-    /// Per band, the island's row of each of its rows.
+    /// Per domain, the island's row of each of its rows.
     pub(crate) rows_of: Vec<Vec<u32>>,
-    /// Per building thread, each island body's slot in the band it builds (scratch).
+    /// Per building thread, each island body's slot in the domain it builds (scratch).
     slots: Vec<Vec<u32>>,
 }
 
 impl Domains {
     /// Cuts the island (`manifolds`, `rows`, `vel`: the solver's, after the warm start, bodies
-    /// in Z-order) into `n` bands (1 to [`MAX_DOMAINS`](crate::MAX_DOMAINS), clamped) and
-    /// builds each band's sweep plan, the bands side by side on up to `threads` threads (≥ 1;
-    /// a band's plan does not depend on the thread).
+    /// in Z-order) into `n` domains (1 to [`MAX_DOMAINS`](crate::MAX_DOMAINS), clamped) and
+    /// builds each domain's sweep plan, the domains side by side on up to `threads` threads (≥ 1;
+    /// a domain's plan does not depend on the thread).
     pub(crate) fn build(
         &mut self,
         n: usize,
@@ -63,8 +63,8 @@ impl Domains {
         );
     }
 
-    /// Copies the bands' impulses back into the island's rows and their velocities into the
-    /// island's (a seam body's are the same in both its bands after a solve; an immovable
+    /// Copies the domains' impulses back into the island's rows and their velocities into the
+    /// island's (a seam body's are the same in both its domains after a solve; an immovable
     /// body's are never written).
     pub(crate) fn write_back(&mut self, rows: &mut [Row], vel: &mut [Vel]) {
         for (p, part) in self.parts.iter_mut().enumerate() {
@@ -78,8 +78,8 @@ impl Domains {
         }
     }
 
-    /// Stage 3's loop in the band plan on up to `threads` threads (≥ 1; no more than half
-    /// the bands, rounded up). Returns the iterations run and the last verdict, as the one-thread loop
+    /// Stage 3's loop in the domain plan on up to `threads` threads (≥ 1; no more than half
+    /// the domains, rounded up). Returns the iterations run and the last verdict, as the one-thread loop
     /// does; `report` gets the residual of every iteration.
     pub(crate) fn solve(
         &mut self,
@@ -127,7 +127,7 @@ struct Island<'a> {
     settings: PgsSettings,
 }
 
-/// Builds band `p` of `partition` of `island` into `part` (`slot`: each island body's slot
+/// Builds domain `p` of `partition` of `island` into `part` (`slot`: each island body's slot
 /// in it): its bodies' velocities, its rows (`rows_of`: the island's row of each), its
 /// manifolds renumbered, then its colours and batches.
 fn build_part(
@@ -178,7 +178,7 @@ fn build_part(
     part.colour(bodies.len(), None);
 }
 
-/// A band of the velocity sweep: its solver, swept in the instruction set chosen at run time.
+/// A domain of the velocity sweep: its solver, swept in the instruction set chosen at run time.
 struct VelocityPart<'a> {
     solver: &'a mut PgsSolver,
     arch: pulp::Arch,
@@ -209,7 +209,7 @@ impl Part for VelocityPart<'_> {
     }
 }
 
-/// One sweep of one band, compiled for the instruction set chosen at run time.
+/// One sweep of one domain, compiled for the instruction set chosen at run time.
 struct SweepOnce<'a> {
     solver: &'a mut PgsSolver,
     contact: bool,
