@@ -196,6 +196,16 @@ fn settled_pile(o: &Options) -> Result<World, String> {
 /// The ratio of `many` (runs on `threads` threads) to `one` (one thread) round by round, and
 /// of their fastest rounds: the runs of a round follow each other within a second, so they
 /// share the machine's state more often than the medians of whole columns do.
+/// The FNV-1a hash of `words`' bytes.
+fn fnv1a(words: &[u64]) -> u64 {
+    words
+        .iter()
+        .flat_map(|w| w.to_le_bytes())
+        .fold(0xcbf2_9ce4_8422_2325, |h, byte| {
+            (h ^ u64::from(byte)).wrapping_mul(0x0000_0100_0000_01b3)
+        })
+}
+
 fn print_rounds(threads: usize, many: &[Run], one: &[Run]) {
     let paired: Vec<f64> = many.iter().zip(one).map(|(m, o)| m.wall / o.wall).collect();
     let fastest = |rs: &[Run]| rs.iter().map(|r| r.wall).fold(f64::INFINITY, f64::min);
@@ -249,7 +259,8 @@ fn main() -> Result<(), String> {
         "Pile of {} circles (seed {SEED}) settled {} steps, then {} steps under the thesis stop \
          rule, {} rounds; {:.0} contact points in {:.1} islands, {:.0} velocity iterations \
          (slowest island) and {:.0} position iterations per step; the chunked runs bit-identical for every thread \
-         count (the unchunked run's position pass visits the points in another order).\n",
+         count (the unchunked run's position pass visits the points in another order), their \
+         final state's hash {:#018x} (to compare builds).\n",
         o.bodies,
         o.settle,
         o.steps,
@@ -258,6 +269,7 @@ fn main() -> Result<(), String> {
         reference.islands as f64 / o.steps as f64,
         reference.iterations as f64 / o.steps as f64,
         reference.position_iterations as f64 / o.steps as f64,
+        fnv1a(&reference.bits),
     );
     println!(
         "| threads | step ms (median) | velocity solve ms | rest ms | step / chunked 1 thread | \

@@ -38,15 +38,21 @@ pub(crate) struct Partition {
     pub(crate) link_ranges: Vec<Range<usize>>,
     /// The number of the island's bodies.
     bodies: usize,
-    /// Scratch: each body's layer (`u32::MAX`: not reached), then its domain.
-    layer: Vec<u32>,
+    /// Scratch: whether each body can move (some constraint says so).
+    moves: Vec<bool>,
     /// Scratch: the first neighbour of each body in `neighbours`, then the end.
     first: Vec<u32>,
-    /// Scratch: the movable neighbours of every body, body by body.
+    /// Scratch: the movable neighbours of every movable body, body by body.
     neighbours: Vec<u32>,
+    /// Scratch: each body's fill cursor in `neighbours`, then its index in `shared`.
+    at: Vec<u32>,
     /// Scratch: the breadth-first queue.
     queue: Vec<u32>,
-    /// Scratch: the domain of each layer, then of each body.
+    /// Scratch: each body's layer (`u32::MAX`: an immovable body, or one no constraint holds).
+    layer: Vec<u32>,
+    /// Scratch: the constraints of each layer, then its domain.
+    per_layer: Vec<u32>,
+    /// Scratch: each movable body's domain.
     domain: Vec<u32>,
     /// Scratch: the parts of each body, as bits.
     used: Vec<u64>,
@@ -66,8 +72,8 @@ impl Partition {
         self.n = n;
         self.bodies = bodies;
         self.link_graph(count, &ends);
-        let layers = self.layer_bodies();
-        self.domain_layers(n, layers, count, &ends);
+        self.layer_bodies();
+        self.domain_layers(n, count, &ends);
         // A constraint's domain: its later movable body's (none movable: domain 0, which leaves
         // it as it is).
         let domain = &self.domain;
@@ -95,87 +101,85 @@ impl Partition {
             let bit = 1u64 << p;
             list.extend((0..bodies as u32).filter(|&b| self.used[b as usize] & bit != 0));
         }
-        self.link_seams(count, &ends);
+        self.link_seams();
     }
 
-    /// The movable neighbours of every body (`first`, `neighbours`), in constraint order.
+    /// Which bodies move (`moves`), and the movable neighbours of each (`first`,
+    /// `neighbours`), in constraint order.
     fn link_graph(&mut self, count: usize, ends: &impl Fn(usize) -> Ends) {
         let bodies = self.bodies;
+        self.moves.clear();
+        self.moves.resize(bodies, false);
         self.first.clear();
         self.first.resize(bodies + 1, 0);
-        let joined = |c: usize| match ends(c) {
-            [(a, true), (b, true)] if a != b => Some((a, b)),
-            _ => None,
-        };
-        for (a, b) in (0..count).filter_map(joined) {
-            self.first[a as usize + 1] += 1;
-            self.first[b as usize + 1] += 1;
+        for c in 0..count {
+            let ends = ends(c);
+            for (b, m) in ends {
+                self.moves[b as usize] |= m;
+            }
+            if let [(a, true), (b, true)] = ends {
+                self.first[a as usize + 1] += 1;
+                self.first[b as usize + 1] += 1;
+            }
         }
         for b in 0..bodies {
             self.first[b + 1] += self.first[b];
         }
         self.neighbours.clear();
         self.neighbours.resize(self.first[bodies] as usize, 0);
-        // `queue` as each body's fill cursor.
-        self.queue.clear();
-        self.queue.extend_from_slice(&self.first[..bodies]);
-        for (a, b) in (0..count).filter_map(joined) {
-            for (from, to) in [(a, b), (b, a)] {
-                let at = &mut self.queue[from as usize];
-                self.neighbours[*at as usize] = to;
-                *at += 1;
+        self.at.clear();
+        self.at.extend_from_slice(&self.first[..bodies]);
+        for c in 0..count {
+            if let [(a, true), (b, true)] = ends(c) {
+                for (from, to) in [(a, b), (b, a)] {
+                    let at = &mut self.at[from as usize];
+                    self.neighbours[*at as usize] = to;
+                    *at += 1;
+                }
             }
         }
     }
 
-    /// Each body's breadth-first layer (`layer`), walks started from the lowest-numbered body
-    /// not yet reached, each walk's layers after the last one's. Returns the layer count.
-    fn layer_bodies(&mut self) -> usize {
-        let bodies = self.bodies;
+    /// Each movable body's breadth-first layer (`layer`): walks started from the
+    /// lowest-numbered movable body not yet reached, each walk's layers after the last one's.
+    fn layer_bodies(&mut self) {
         self.layer.clear();
-        self.layer.resize(bodies, u32::MAX);
+        self.layer.resize(self.bodies, u32::MAX);
         let mut layers = 0u32;
-        for start in 0..bodies {
-            if self.layer[start] != u32::MAX {
+        for start in 0..self.bodies {
+            if !self.moves[start] || self.layer[start] != u32::MAX {
                 continue;
             }
             self.queue.clear();
             self.queue.push(start as u32);
             self.layer[start] = layers;
             let mut head = 0;
-            while head < self.queue.len() {
-                let b = self.queue[head] as usize;
+            while let Some(&b) = self.queue.get(head) {
                 head += 1;
-                let next = self.layer[b] + 1;
-                let range = self.first[b] as usize..self.first[b + 1] as usize;
-                for &to in &self.neighbours[range] {
+                let (b, next) = (b as usize, self.layer[b as usize] + 1);
+                for &to in &self.neighbours[self.first[b] as usize..self.first[b + 1] as usize] {
                     if self.layer[to as usize] == u32::MAX {
                         self.layer[to as usize] = next;
                         self.queue.push(to);
                     }
                 }
             }
-            let last = self
+            // A walk's last body is in its deepest layer.
+            layers = self
                 .queue
                 .last()
-                .map_or(layers, |&b| self.layer[b as usize]);
-            layers = last + 1;
+                .map_or(layers, |&b| self.layer[b as usize])
+                + 1;
         }
-        layers as usize
+        self.per_layer.clear();
+        self.per_layer.resize(layers as usize, 0);
     }
 
     /// Runs of layers holding about `count / n` constraints each (counted at their later
-    /// movable body's layer) into domains; each body's domain into `domain`. Neighbouring layers
-    /// get the same domain or neighbouring ones, so a constraint's bodies do too.
-    fn domain_layers(
-        &mut self,
-        n: usize,
-        layers: usize,
-        count: usize,
-        ends: &impl Fn(usize) -> Ends,
-    ) {
-        self.domain.clear();
-        self.domain.resize(layers, 0);
+    /// movable body's layer) into domains; each movable body's domain into `domain`.
+    /// Neighbouring layers get the same domain or neighbouring ones, so a constraint's movable
+    /// bodies do too.
+    fn domain_layers(&mut self, n: usize, count: usize, ends: &impl Fn(usize) -> Ends) {
         let layer = &self.layer;
         for c in 0..count {
             let at = match ends(c) {
@@ -183,22 +187,24 @@ impl Partition {
                 [(a, true), _] | [_, (a, true)] => layer[a as usize],
                 _ => continue,
             };
-            self.domain[at as usize] += 1;
+            self.per_layer[at as usize] += 1;
         }
-        // A layer opens the next domain once the constraints before it reach that domain's share.
+        // A layer opens the next domain once the constraints before it reach that domain's
+        // share.
         let (mut seen, mut domain) = (0usize, 0usize);
-        for k in &mut self.domain {
+        for k in &mut self.per_layer {
             if domain + 1 < n && seen > 0 && seen * n >= (domain + 1) * count {
                 domain += 1;
             }
             seen += *k as usize;
             *k = domain as u32;
         }
-        // Each body's domain in place of its layer (a body no constraint moves keeps domain 0).
-        for l in &mut self.layer {
-            *l = self.domain.get(*l as usize).copied().unwrap_or(0);
-        }
-        std::mem::swap(&mut self.layer, &mut self.domain);
+        self.domain.clear();
+        self.domain.extend(
+            self.layer
+                .iter()
+                .map(|&l| self.per_layer.get(l as usize).copied().unwrap_or(0)),
+        );
     }
 
     /// Runs `build(p, item, slot)` for the `p`-th item of `items` (one per part) on up to
@@ -246,35 +252,25 @@ impl Partition {
         });
     }
 
-    /// The bodies that two domains move, and each domain's links to their shared values.
-    fn link_seams(&mut self, count: usize, ends: &impl Fn(usize) -> Ends) {
-        // `queue` as each body's index in `shared` (`u32::MAX`: not shared).
-        self.queue.clear();
-        self.queue.resize(self.bodies, u32::MAX);
+    /// The movable bodies that two domains hold (`shared`), and each domain's links to them.
+    fn link_seams(&mut self) {
         self.shared.clear();
-        let mut moves = std::mem::take(&mut self.first);
-        moves.clear();
-        moves.resize(self.bodies, 0);
-        for c in 0..count {
-            for (b, m) in ends(c) {
-                moves[b as usize] |= u32::from(m);
-            }
-        }
-        for (b, (&bits, &m)) in self.used.iter().zip(&moves).enumerate() {
-            if m == 1 && bits.count_ones() > 1 {
-                self.queue[b] = self.shared.len() as u32;
+        self.at.clear();
+        self.at.resize(self.bodies, u32::MAX);
+        for (b, (&bits, &m)) in self.used.iter().zip(&self.moves).enumerate() {
+            if m && bits.count_ones() > 1 {
+                self.at[b] = self.shared.len() as u32;
                 self.shared.push(b as u32);
             }
         }
-        self.first = moves;
         self.links.clear();
         self.link_ranges.clear();
         for list in &self.bodies_of {
             let start = self.links.len();
             for (s, &b) in list.iter().enumerate() {
-                let at = self.queue[b as usize];
-                if at != u32::MAX {
-                    self.links.push((s as u32, at));
+                let k = self.at[b as usize];
+                if k != u32::MAX {
+                    self.links.push((s as u32, k));
                 }
             }
             self.link_ranges.push(start..self.links.len());
