@@ -1,5 +1,5 @@
-//! One big island on several threads: the settled pile of `--bodies` circles (default
-//! 10 000) stepped under the thesis stop rule (cap 1 000, ∞-norm < 1e-4, position cap 250)
+//! One big island on several threads: the settled pile (`--seed`, default 12345) of
+//! `--bodies` circles (default 10 000) stepped under the thesis stop rule (cap 1 000, ∞-norm < 1e-4, position cap 250)
 //! from the same snapshot, alternately for `--rounds` rounds: the plain one-thread solvers
 //! (unchunked sweep, position pass in problem order), and the planned sweeps on 1 thread and on
 //! `--threads` threads (islands side by side; the velocity sweep in the domain plan of
@@ -32,6 +32,7 @@ struct Options {
     settle: u64,
     rounds: usize,
     domains: usize,
+    seed: u64,
 }
 
 fn parse() -> Result<Option<Options>, String> {
@@ -42,13 +43,14 @@ fn parse() -> Result<Option<Options>, String> {
         settle: 0,
         rounds: 3,
         domains: PgsSettings::default().domains,
+        seed: SEED,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         if a == "--help" || a == "-h" {
             println!(
                 "usage: threads [--bodies 10000] [--threads 2] [--steps 5] [--settle STEPS] \
-                 [--rounds 3] [--domains 16]  (--settle default: 250 × (bodies / 100)^¼)"
+                 [--rounds 3] [--domains 16] [--seed 12345]  (--settle default: 250 × (bodies / 100)^¼)"
             );
             return Ok(None);
         }
@@ -61,6 +63,7 @@ fn parse() -> Result<Option<Options>, String> {
             "--settle" => o.settle = number(&value)?,
             "--rounds" => o.rounds = number(&value)? as usize,
             "--domains" => o.domains = number(&value)? as usize,
+            "--seed" => o.seed = number(&value)?,
             _ => return Err(format!("unknown option {a} (see --help)")),
         }
     }
@@ -165,7 +168,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 /// The pile of `o.bodies` circles settled for `o.settle` steps.
 fn settled_pile(o: &Options) -> Result<World, String> {
     let t0 = Instant::now();
-    let scene = scene::pile(SEED, o.bodies).map_err(|e| e.to_string())?;
+    let scene = scene::pile(o.seed, o.bodies).map_err(|e| e.to_string())?;
     let mut world = scene.build(settle_world(50)).map_err(|e| e.to_string())?;
     // Settled with the chunked plans, which the earlier measurements (docs/BENCHMARKS.md)
     // settled with: the same snapshot for every version since.
@@ -185,8 +188,9 @@ fn settled_pile(o: &Options) -> Result<World, String> {
             .map_err(|e| e.to_string())?;
     }
     eprintln!(
-        "pile of {} circles settled for {} steps in {:.1} s",
+        "pile of {} circles (seed {}) settled for {} steps in {:.1} s",
         o.bodies,
+        o.seed,
         o.settle,
         t0.elapsed().as_secs_f64()
     );
@@ -256,12 +260,13 @@ fn main() -> Result<(), String> {
         median(rs.iter().map(|r| f(r) / o.steps as f64 * 1e3).collect())
     };
     println!(
-        "Pile of {} circles (seed {SEED}) settled {} steps, then {} steps under the thesis stop \
+        "Pile of {} circles (seed {}) settled {} steps, then {} steps under the thesis stop \
          rule, {} rounds; {:.0} contact points in {:.1} islands, {:.0} velocity iterations \
          (slowest island) and {:.0} position iterations per step; the chunked runs bit-identical for every thread \
          count (the unchunked run's position pass visits the points in another order), their \
          final state's hash {:#018x} (to compare builds).\n",
         o.bodies,
+        o.seed,
         o.settle,
         o.steps,
         o.rounds,
