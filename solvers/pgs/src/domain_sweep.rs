@@ -56,11 +56,11 @@ pub(crate) fn sweep_parts<P: Part>(
 ) -> Vec<P::Measures> {
     let n = parts.len();
     let (links, ranges) = (&partition.links, &partition.link_ranges);
-    // The seams' values, from the first domain that holds each (all hold the same).
+    // The seams' values, from the domains that hold them (both hold the island's value).
     let shared: Vec<Cell3> = (0..partition.shared.len())
         .map(|_| Cell3::default())
         .collect();
-    for (part, range) in parts.iter().zip(ranges).rev() {
+    for (part, range) in parts.iter().zip(ranges) {
         for &(s, k) in &links[range.clone()] {
             shared[k as usize].store(part.get(s));
         }
