@@ -95,11 +95,15 @@ impl Partition {
                 self.used[b as usize] |= 1 << q;
             }
         }
+        // Each domain's bodies, ascending: one pass over the bodies.
         self.bodies_of.resize_with(n, Vec::new);
-        for (p, list) in self.bodies_of.iter_mut().enumerate() {
-            list.clear();
-            let bit = 1u64 << p;
-            list.extend((0..bodies as u32).filter(|&b| self.used[b as usize] & bit != 0));
+        self.bodies_of.iter_mut().for_each(Vec::clear);
+        for (b, &bits) in self.used.iter().enumerate() {
+            let mut rest = bits;
+            while rest != 0 {
+                self.bodies_of[rest.trailing_zeros() as usize].push(b as u32);
+                rest &= rest - 1;
+            }
         }
         self.link_seams();
     }
