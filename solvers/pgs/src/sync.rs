@@ -222,20 +222,38 @@ mod tests {
 
     #[test]
     fn a_slow_thread_leaves_the_rest_of_its_segment_to_a_faster_one() {
-        // One phase of 8 items on 2 threads, the spawned thread's items 7 times as slow as the
-        // caller's: the caller takes its own 4 items, then the spawned thread's that are
-        // still left, so in every iteration the spawned thread ran one item at most (none if
-        // it started late) and the caller the rest.
+        // One phase of 8 items on 2 threads. In every iteration the caller's first item
+        // waits until the spawned thread has started an item, and the spawned thread's item
+        // waits until the caller has run 7: so the spawned thread holds its first item (4)
+        // while the caller runs its own 4 and the 3 left of the spawned thread's segment.
+        // Nothing here depends on timing; the deadlines only end a wait that the queue
+        // would never end (a caller that does not help), and the test then fails.
         let caller = std::thread::current().id();
+        let deadline = std::time::Duration::from_secs(2);
+        let wait = |ready: &dyn Fn() -> bool| {
+            let t0 = std::time::Instant::now();
+            while !ready() && t0.elapsed() < deadline {
+                std::thread::yield_now();
+            }
+        };
         let ran_by_caller: Vec<Vec<AtomicBool>> = (0..3)
             .map(|_| (0..8).map(|_| AtomicBool::new(false)).collect())
             .collect();
+        let (caller_ran, spawned_started): (Vec<AtomicUsize>, Vec<AtomicBool>) = (
+            (0..3).map(|_| AtomicUsize::new(0)).collect(),
+            (0..3).map(|_| AtomicBool::new(false)).collect(),
+        );
         let iteration = AtomicUsize::new(0);
         let process = |item: usize, _: usize| {
-            let mine = std::thread::current().id() == caller;
-            let ms = if mine { 3 } else { 21 };
-            std::thread::sleep(std::time::Duration::from_millis(ms));
             let it = iteration.load(Mem::SeqCst);
+            let mine = std::thread::current().id() == caller;
+            if mine {
+                wait(&|| spawned_started[it].load(Mem::SeqCst));
+                caller_ran[it].fetch_add(1, Mem::SeqCst);
+            } else {
+                spawned_started[it].store(true, Mem::SeqCst);
+                wait(&|| caller_ran[it].load(Mem::SeqCst) >= 7);
+            }
             ran_by_caller[it][item].store(mine, Mem::SeqCst);
         };
         let judge = |it: u32, _: usize| {
@@ -245,17 +263,11 @@ mod tests {
         assert_eq!(run_phased(2, 3, &[0, 8], &process, &judge), 3);
         for (it, items) in ran_by_caller.iter().enumerate() {
             let by: Vec<bool> = items.iter().map(|b| b.load(Mem::SeqCst)).collect();
-            assert!(by[..4].iter().all(|&m| m), "iteration {it}: {by:?}");
-            let helped = by[4..].iter().filter(|&&m| m).count();
-            assert!(helped >= 3, "iteration {it}: {by:?}");
+            let expected = [true, true, true, true, false, true, true, true];
+            assert_eq!(
+                by, expected,
+                "iteration {it}: who ran each item (true: the caller)"
+            );
         }
-        // Once running, the spawned thread starts its segment while the caller is still on
-        // its own items (12 ms).
-        assert!(
-            ran_by_caller
-                .iter()
-                .any(|items| !items[4].load(Mem::SeqCst)),
-            "the spawned thread never ran an item"
-        );
     }
 }
