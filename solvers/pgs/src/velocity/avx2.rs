@@ -291,7 +291,8 @@ mod tests {
     use deepcontact_core::rng::PortableRng;
 
     use super::*;
-    use crate::velocity::{BatchKernel, Portable};
+    use crate::velocity::BatchKernel;
+    use crate::velocity::kernel::Portable;
 
     /// `n` random batches of one colour over `bodies` bodies (each movable body in at most
     /// one lane; some lanes immovable or padding), with the odd special value a start or a
