@@ -5,11 +5,14 @@ use std::path::PathBuf;
 
 use clap::Args;
 use deepcontact_core::Registry;
-use deepcontact_core::registry::split_spec_list;
+use deepcontact_core::registry::{Spec, split_spec_list};
 use deepcontact_experiments::compare::{
     Config, DEFAULT_SEEDS, DEFAULT_WARM_STARTS, run_experiment_with, write_outputs,
 };
 use deepcontact_experiments::seeds::parse_seeds;
+use deepcontact_experiments::suite::{
+    DEFAULT_BUDGETS, DEFAULT_SCENES, SuiteConfig, parse_budgets, run_suite, write_suite,
+};
 
 use crate::common::{CliError, SolverArgs};
 
@@ -57,9 +60,56 @@ pub struct CompareArgs {
     /// all figures compare starts on the same contacts instead of diverging trajectories.
     #[arg(long, value_name = "WARM_START")]
     pub same_problems: Option<String>,
+    /// Run the scene suite over these registered scene specs (`deepcontact list`), e.g.
+    /// `pile,box-pile:bodies=1000,pyramid:base=20`: one summary with a scene and a budget
+    /// column (`--scene` and `--bodies` are then unused). `suite` names the seven scenes of
+    /// the suite.
+    #[arg(long)]
+    pub scenes: Option<String>,
+    /// Fixed budgets of constraint passes per island and step, the provider's own sweeps
+    /// included, comma-separated, `tolerance` for the stop rule of `--tolerance` and
+    /// `--max-iterations`, e.g. `4,8,16,32,tolerance` (runs the suite; default with
+    /// `--scenes`: that list).
+    #[arg(long)]
+    pub budgets: Option<String>,
+    /// One fixed budget of passes per island and step (`--budgets K`).
+    #[arg(long, conflicts_with = "budgets")]
+    pub budget: Option<u32>,
+    /// Position iterations per step under a pass budget, run in full (Box2D v2.4's 3).
+    #[arg(long, default_value_t = 3)]
+    pub position_passes: u32,
 }
 
 impl CompareArgs {
+    /// Whether these options ask for the scene suite (scenes or budgets given).
+    pub fn is_suite(&self) -> bool {
+        self.scenes.is_some() || self.budgets.is_some() || self.budget.is_some()
+    }
+
+    /// The suite these options describe: [`Self::config`] over the scenes and budgets.
+    pub fn suite_config(&self) -> Result<SuiteConfig, CliError> {
+        let base = self.config()?;
+        let scenes = match self.scenes.as_deref() {
+            None => match &base.scene_spec {
+                Some(spec) => vec![spec.clone()],
+                None => vec![single_scene_spec(&base.scene, base.bodies)?],
+            },
+            Some("suite") => split_spec_list(DEFAULT_SCENES)?,
+            Some(list) => split_spec_list(list)?,
+        };
+        let budgets = match (&self.budgets, self.budget) {
+            (Some(list), _) => parse_budgets(list)?,
+            (None, Some(k)) => parse_budgets(&k.to_string())?,
+            (None, None) => parse_budgets(DEFAULT_BUDGETS)?,
+        };
+        Ok(SuiteConfig {
+            base,
+            scenes,
+            budgets,
+            position_passes: self.position_passes,
+        })
+    }
+
     /// The experiment these options describe.
     pub fn config(&self) -> Result<Config, CliError> {
         let preset = self.solver.preset()?;
@@ -82,6 +132,7 @@ impl CompareArgs {
                 _ => self.scene.clone(),
             },
             world: preset.world(self.solver.world_settings()),
+            scene_spec: None,
             threads: self.threads.unwrap_or(0),
             progress: !self.quiet,
             same_problems: self.same_problems.clone(),
@@ -89,8 +140,48 @@ impl CompareArgs {
     }
 }
 
+/// `--scene NAME --bodies N` as a registered scene spec, for a suite of one scene: the
+/// piles take `bodies`, the stacked scenes their size where `bodies` is not the default 100.
+fn single_scene_spec(scene: &str, bodies: usize) -> Result<Spec, CliError> {
+    let key = match scene {
+        "pile" | "box-pile" | "polygon-pile" => Some("bodies"),
+        "pyramid" => Some("base"),
+        "stack" | "ratio-stack" => Some("count"),
+        _ => None,
+    };
+    let text = match key {
+        Some("bodies") => format!("{scene}:bodies={bodies}"),
+        Some(k) if bodies != 100 => format!("{scene}:{k}={bodies}"),
+        _ => scene.to_string(),
+    };
+    Ok(text.parse()?)
+}
+
+/// Runs the suite of `args` and writes its files; its `summary.md` goes to stdout.
+fn run_suite_command(args: &CompareArgs, registry: &Registry) -> Result<(), CliError> {
+    let config = args.suite_config()?;
+    let cells = config.scenes.len() * config.budgets.len();
+    let mut done = 0;
+    let results = run_suite(&config, registry, &|| false, &mut |cell| {
+        done += 1;
+        if !args.quiet {
+            eprintln!(
+                "[{done}/{cells}] {} budget {}: {:.1} s",
+                cell.scene, cell.budget, cell.results.wall_seconds
+            );
+        }
+    })?;
+    let (files, md) = write_suite(&results, &args.out, !args.no_plots)?;
+    let _ = writeln!(std::io::stdout().lock(), "{md}");
+    eprintln!("wrote {} files to {}", files.len(), args.out.display());
+    Ok(())
+}
+
 /// Runs `compare`: the experiment, the files, and `summary.md` on stdout.
 pub fn run(args: CompareArgs, registry: &Registry) -> Result<(), CliError> {
+    if args.is_suite() {
+        return run_suite_command(&args, registry);
+    }
     let results = run_experiment_with(&args.config()?, registry)?;
     let outputs = write_outputs(&results, &args.out, !args.no_plots)?;
     // A closed stdout (`| head`) is not an error worth a panic: the files are written.

@@ -55,7 +55,7 @@ pub enum Command {
     GridRoundtrip(grid_roundtrip::GridRoundtripArgs),
     /// The pile for 20 000 steps with each baseline warm start: no NaN, no escape, energy bounded.
     Soak(soak::SoakArgs),
-    /// List the registered warm starts and solvers with their parameters.
+    /// List the registered warm starts, solvers and scenes with their parameters.
     List,
 }
 
@@ -88,6 +88,10 @@ pub fn run(cli: Cli, registry: &Registry) -> Result<(), CliError> {
             }
             println!("solvers:");
             for (name, help) in registry.solvers() {
+                println!("  {name}: {help}");
+            }
+            println!("scenes:");
+            for (name, help) in registry.scenes() {
                 println!("  {name}: {help}");
             }
             Ok(())

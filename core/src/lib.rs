@@ -48,4 +48,4 @@ pub use warm_start::{
     CarriedWarmStart, GuardPolicy, Observation, WarmStart, WarmStartContext, WarmStartError,
     ZeroWarmStart,
 };
-pub use world::{Stage, World, WorldSettings};
+pub use world::{MAX_BUDGET, Stage, World, WorldSettings};

@@ -74,6 +74,25 @@ pub struct StepReport {
     pub solve_seconds: Real,
     /// Seconds of the whole step.
     pub step_seconds: Real,
+    /// Passes over their islands' contact rows that the warm-start provider spent, summed
+    /// over islands (0 for providers that do not sweep; see
+    /// [`WarmStart::passes_spent`](crate::WarmStart::passes_spent)).
+    pub provider_passes: u64,
+    /// Mean penetration depth over the contact points, `max(0, −separation)` as the narrow
+    /// phase found it at the start of the step (m; 0 without contacts).
+    pub penetration_mean: Real,
+    /// Deepest penetration over the contact points, as [`Self::penetration_mean`] (m).
+    pub penetration_max: Real,
+    /// Mean normal velocity error over the contact points after the velocity solve (m/s):
+    /// with `vn` the normal relative velocity and `b` the point's velocity bias,
+    /// `|vn − b|` where the normal impulse is positive (a pushing contact should hold
+    /// `vn = b`) and `max(0, b − vn)` where it is zero (no approach left).
+    pub normal_velocity_error_mean: Real,
+    /// Largest normal velocity error over the contact points (m/s), as
+    /// [`Self::normal_velocity_error_mean`].
+    pub normal_velocity_error_max: Real,
+    /// Kinetic energy of the dynamic bodies at the end of the step (J).
+    pub kinetic_energy: Real,
 }
 
 impl StepReport {
@@ -111,14 +130,51 @@ impl StepReport {
         }
     }
 
-    /// Turns the sums of [`Self::add_island`] into the 2-norm curve and the mean squared errors.
+    /// Adds one island's contact measures after its solve: penetration depths (from the
+    /// points' separations) and normal velocity errors (from the solved body `velocities`,
+    /// one per body of `problem`, and the `solved` impulses, one per point), summed until
+    /// [`Self::finish_islands`].
+    pub fn add_contact_errors(
+        &mut self,
+        problem: &crate::ContactProblem,
+        velocities: &[crate::Velocity],
+        solved: &[crate::Impulse],
+    ) {
+        let cross = |w: Real, r: &crate::Vector| crate::Vector::new(-w * r.y, w * r.x);
+        for (p, imp) in problem.points.iter().zip(solved) {
+            let depth = (-p.separation).max(0.0);
+            self.penetration_mean += depth;
+            self.penetration_max = self.penetration_max.max(depth);
+            let (Some(a), Some(b)) = (
+                velocities.get(p.body_a as usize),
+                velocities.get(p.body_b as usize),
+            ) else {
+                continue;
+            };
+            let dv = (b.linear + cross(b.angular, &p.r_b)) - (a.linear + cross(a.angular, &p.r_a));
+            let vn = dv.dot(&p.normal);
+            let error = if imp.normal > 0.0 {
+                (vn - p.velocity_bias).abs()
+            } else {
+                (p.velocity_bias - vn).max(0.0)
+            };
+            self.normal_velocity_error_mean += error;
+            self.normal_velocity_error_max = self.normal_velocity_error_max.max(error);
+        }
+    }
+
+    /// Turns the sums of [`Self::add_island`] and [`Self::add_contact_errors`] into the
+    /// 2-norm curve, the mean squared errors and the means over points.
     pub fn finish_islands(&mut self) {
         for v in &mut self.residual_curve_l2 {
             *v = v.sqrt();
         }
         if self.contacts > 0 {
-            self.mse_normal /= self.contacts as Real;
-            self.mse_tangent /= self.contacts as Real;
+            let n = self.contacts as Real;
+            self.mse_normal /= n;
+            self.mse_tangent /= n;
+            self.penetration_mean /= n;
+            self.normal_velocity_error_mean /= n;
         }
     }
 

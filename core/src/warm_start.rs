@@ -59,6 +59,10 @@ pub struct WarmStartContext<'a> {
     pub gravity: Vector,
     /// The world being stepped, if the problem comes from one (`None` for hand-built problems).
     pub world: Option<&'a crate::World>,
+    /// Under a fixed budget ([`WorldSettings::budget`](crate::WorldSettings::budget)), the
+    /// most passes over this island's contact rows the provider may spend; the solver gets
+    /// the rest. `None` (the default): no budget, the provider spends what it likes.
+    pub pass_budget: Option<u32>,
 }
 
 impl<'a> WarmStartContext<'a> {
@@ -78,7 +82,20 @@ impl<'a> WarmStartContext<'a> {
             dt,
             gravity: Vector::new(0.0, -9.81),
             world: None,
+            pass_budget: None,
         }
+    }
+
+    /// Sets the most passes the provider may spend ([`Self::pass_budget`]).
+    pub fn with_pass_budget(mut self, passes: u32) -> Self {
+        self.pass_budget = Some(passes);
+        self
+    }
+
+    /// `own` passes capped by [`Self::pass_budget`]: what a provider that sweeps `own` times
+    /// by its own settings may run here.
+    pub fn passes_allowed(&self, own: u32) -> u32 {
+        self.pass_budget.map_or(own, |b| own.min(b))
     }
 
     /// The impulse carried to point `i`, zero where the point is new (or out of range).
@@ -245,6 +262,14 @@ pub trait WarmStart: Send {
     fn diagnostics(&self) -> Vec<(String, Real)> {
         Vec::new()
     }
+
+    /// Passes over the island's contact rows (sweeps of a solver, each costing about one
+    /// solver iteration) that the last [`Self::warm_start`] call spent. Under a fixed budget
+    /// ([`WarmStartContext::pass_budget`]) the world gives the solver what is left, so a
+    /// provider that sweeps must say so here. Default: 0 (the provider does not sweep).
+    fn passes_spent(&self) -> u32 {
+        0
+    }
 }
 
 impl<W: WarmStart + ?Sized> WarmStart for Box<W> {
@@ -266,6 +291,9 @@ impl<W: WarmStart + ?Sized> WarmStart for Box<W> {
     }
     fn diagnostics(&self) -> Vec<(String, Real)> {
         (**self).diagnostics()
+    }
+    fn passes_spent(&self) -> u32 {
+        (**self).passes_spent()
     }
 }
 

@@ -14,6 +14,10 @@ use crate::report::{SolveReport, StepReport};
 use crate::solver::{PositionSettings, PositionSolver, SolverSettings, VelocitySolver};
 use crate::warm_start::{GuardPolicy, Observation, WarmStart, WarmStartContext, check_output};
 
+/// The largest pass budget [`WorldSettings::budget`] accepts (a fixed budget is a small
+/// number of passes; the tolerance mode serves long solves).
+pub const MAX_BUDGET: u32 = 100_000;
+
 /// Settings of a world. Defaults are the thesis's.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct WorldSettings {
@@ -47,6 +51,14 @@ pub struct WorldSettings {
     /// [`MIN_PAIRS_PER_THREAD`](crate::narrow_phase::MIN_PAIRS_PER_THREAD) (default 1; at
     /// least 1). The contacts are the same, in the same order, for any count.
     pub collide_threads: usize,
+    /// A fixed budget of constraint passes per island and step, the provider's own included
+    /// (default `None`: the velocity solve runs under [`Self::solver`]'s stop rule alone).
+    /// `Some(K)` (K ≥ 2): the provider may spend up to K − 1 passes
+    /// ([`WarmStartContext::pass_budget`]) and says what it spent
+    /// ([`WarmStart::passes_spent`]); the solver then runs exactly K − spent iterations
+    /// (at least 1), whatever [`Self::solver`]'s tolerance and cap say. A pass is one sweep
+    /// over the island's contact rows.
+    pub budget: Option<u32>,
 }
 
 impl Default for WorldSettings {
@@ -63,6 +75,7 @@ impl Default for WorldSettings {
             guard: GuardPolicy::FallbackToZero,
             island_threads: 1,
             collide_threads: 1,
+            budget: None,
         }
     }
 }
@@ -112,6 +125,15 @@ impl WorldSettings {
         }
         if self.collide_threads == 0 {
             return err("collide_threads", 0.0, "must be >= 1");
+        }
+        if let Some(k) = self.budget {
+            if !(2..=MAX_BUDGET).contains(&k) {
+                return err(
+                    "budget",
+                    Real::from(k),
+                    "must be in 2..=100000 passes (one for the provider at most, one for the solver at least)",
+                );
+            }
         }
         self.solver.validate()?;
         self.position.validate()
@@ -187,6 +209,8 @@ struct IslandWork {
     warm: Vec<Impulse>,
     /// Whether the provider's start was replaced by zeros.
     fell_back: bool,
+    /// Passes the provider spent on this island's warm start.
+    passes_spent: u32,
     /// The solved impulses and body velocities.
     impulses: Vec<Impulse>,
     velocities: Vec<Velocity>,
@@ -437,6 +461,7 @@ impl World {
         self.scratch = s;
         result?;
         self.step_index += 1;
+        report.kinetic_energy = self.kinetic_energy();
         report.step_seconds = t_step.elapsed().as_secs_f64();
         Ok(report)
     }
@@ -521,13 +546,18 @@ impl World {
             .extend(s.point_source[k].iter().map(|&c| s.matched[c as usize]));
         work.warm.clear();
         work.warm.resize(n, Impulse::ZERO);
-        let ctx = self.island_context(&s.problems, k, &work.carried);
+        let mut ctx = self.island_context(&s.problems, k, &work.carried);
+        // The provider may spend all but the solver's one pass of a fixed budget.
+        if let Some(budget) = settings.budget {
+            ctx = ctx.with_pass_budget(budget - 1);
+        }
         let t0 = Instant::now();
         let provided = plugins
             .warm_start
             .warm_start(&ctx, &mut work.warm)
             .and_then(|_| check_output(&work.warm, n));
         report.warm_start_seconds += t0.elapsed().as_secs_f64();
+        work.passes_spent = plugins.warm_start.passes_spent();
         work.fell_back = provided.is_err();
         if let Err(e) = provided {
             match settings.guard {
@@ -566,13 +596,18 @@ impl World {
     /// depend on which thread solved it.
     fn solve_islands(&self, s: &mut Scratch, solver: &mut dyn VelocitySolver) {
         let settings = &self.settings.solver;
+        let budget = self.settings.budget;
         let solve =
             |solver: &mut dyn VelocitySolver, problem: &ContactProblem, w: &mut IslandWork| {
                 w.reset_buffers(problem);
+                let island_settings = match budget {
+                    Some(k) => budget_settings(settings, k, w.passes_spent),
+                    None => *settings,
+                };
                 w.error = solver
                     .solve(
                         problem,
-                        settings,
+                        &island_settings,
                         &mut w.impulses,
                         &mut w.velocities,
                         &mut w.report,
@@ -594,6 +629,13 @@ impl World {
         } else {
             Vec::new()
         };
+        if forks.len() < 2 && budget.is_some() {
+            // Each island has its own share of the budget: one call per island.
+            for (problem, w) in s.problems.iter().zip(&mut s.islands) {
+                solve(solver, problem, w);
+            }
+            return;
+        }
         if forks.len() < 2 {
             // All islands in one call: the solver may sweep small ones side by side.
             let mut islands: Vec<crate::IslandSolve<'_>> = s
@@ -679,6 +721,8 @@ impl World {
         );
         report.warm_start_seconds += t0.elapsed().as_secs_f64();
         report.add_island(&work.report, &work.warm, &work.impulses);
+        report.add_contact_errors(&s.problems[k], &work.velocities, &work.impulses);
+        report.provider_passes += u64::from(work.passes_spent);
         for (p, imp) in s.point_source[k].iter().zip(&work.impulses) {
             s.solved[*p as usize] = *imp;
         }
@@ -758,6 +802,19 @@ impl World {
                 .map(|(c, imp)| (c.id, *imp)),
         );
         self.persistent.impulses.sort_unstable_by_key(|a| a.0);
+    }
+}
+
+/// The stop rule of an island under a fixed budget of `budget` passes of which the provider
+/// spent `spent`: exactly the rest, at least one (the minimum equals the cap, so no tolerance
+/// ends it early).
+fn budget_settings(settings: &SolverSettings, budget: u32, spent: u32) -> SolverSettings {
+    let passes = budget.saturating_sub(spent).max(1);
+    SolverSettings {
+        max_iterations: passes,
+        min_iterations: passes,
+        tolerance: 0.0,
+        ..*settings
     }
 }
 

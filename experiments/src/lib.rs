@@ -53,9 +53,10 @@ pub mod roundtrip;
 pub mod seeds;
 pub mod simulate;
 pub mod soak;
+pub mod suite;
 
 pub use error::ExperimentError;
-pub use registry::full_registry;
+pub use registry::{full_registry, scene_for};
 
 /// Serialises `rows` as CSV (a header line from the field names, then one line per row) with
 /// the `csv` crate; `None` fields are empty.

@@ -1,6 +1,24 @@
 //! The full registry: every provider and solver of this build.
 
 use deepcontact_core::Registry;
+use deepcontact_core::scene::{self, Scene};
+
+use crate::ExperimentError;
+
+/// The scene that `--scene` text names, for `seed`: a registered spec with parameters
+/// (`box-pile:bodies=1000,friction=0.3`, built by `registry`), or a bare name with `bodies`
+/// ([`scene::by_name`]: `pile`, `pyramid`, `thesis`, `file:PATH`, ...).
+pub fn scene_for(
+    registry: &Registry,
+    text: &str,
+    seed: u64,
+    bodies: usize,
+) -> Result<Scene, ExperimentError> {
+    if text.contains(':') && !text.starts_with("file:") {
+        return Ok(registry.build_scene(text, seed)?);
+    }
+    Ok(scene::by_name(text, seed, bodies)?)
+}
 
 /// Every provider and solver this build knows: `pgs` (deepcontact-pgs), `psor` and `newton`
 /// (deepcontact-lcp), the baselines (deepcontact-warmstart), `grid` (deepcontact-grid), the
@@ -15,6 +33,7 @@ use deepcontact_core::Registry;
 /// ```
 pub fn full_registry() -> Registry {
     let mut registry = Registry::empty();
+    deepcontact_core::scene::register(&mut registry);
     deepcontact_pgs::register(&mut registry);
     deepcontact_lcp::register(&mut registry);
     deepcontact_warmstart::register(&mut registry);

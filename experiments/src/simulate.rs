@@ -2,7 +2,7 @@
 
 use std::time::Instant;
 
-use deepcontact_core::{Registry, Spec, StepReport, World, WorldSettings, scene};
+use deepcontact_core::{Registry, Spec, StepReport, World, WorldSettings};
 use deepcontact_pgs::PgsPositionSolver;
 
 use crate::ExperimentError;
@@ -10,7 +10,7 @@ use crate::ExperimentError;
 /// What to simulate. [`SimulateConfig::default`] is the thesis pile, seed 12345, builtin.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SimulateConfig {
-    /// Scene name, see [`deepcontact_core::scene::by_name`] (default `pile`).
+    /// Scene: a name with `bodies` or a registered spec, see [`crate::scene_for`] (default `pile`).
     pub scene: String,
     /// Number of bodies (pile: circles, in a box scaled to keep the density; default 100).
     pub bodies: usize,
@@ -120,7 +120,7 @@ pub fn run_scene(
     let mut warm = registry.build_provider(&config.warm_start)?;
     let mut solver = registry.solver_from_spec(&threaded_spec(&config.solver, config.threads)?)?;
     let mut position = PgsPositionSolver::with_threads(config.threads);
-    let scene = scene::by_name(&config.scene, config.seed, config.bodies)?;
+    let scene = crate::scene_for(registry, &config.scene, config.seed, config.bodies)?;
     let mut world = scene.build(WorldSettings {
         island_threads: config.threads.max(1),
         collide_threads: config.threads.max(1),

@@ -148,6 +148,7 @@ fn config(args: &CompareArgs, warm_starts: Vec<Spec>) -> Result<Config, PythonBi
         steps: args.steps,
         bodies: args.bodies,
         scene: args.scene.clone(),
+        scene_spec: None,
         world: world_settings(
             args.tolerance,
             args.max_iterations,

@@ -27,6 +27,14 @@ pub enum SpecError {
         /// Comma-separated registered names.
         known: String,
     },
+    /// No scene of that name is registered.
+    #[error("unknown scene `{name}` (known: {known})")]
+    UnknownScene {
+        /// Requested name.
+        name: String,
+        /// Comma-separated registered names.
+        known: String,
+    },
     /// A parameter the provider does not take.
     #[error("`{spec}` does not take parameter `{param}` (accepted: {accepted})")]
     UnknownParameter {

@@ -32,6 +32,7 @@ use std::sync::Arc;
 pub use error::SpecError;
 pub use spec::{Params, Spec, split_spec_list};
 
+use crate::scene::Scene;
 use crate::solver::VelocitySolver;
 use crate::warm_start::WarmStart;
 
@@ -41,6 +42,8 @@ pub type ProviderFactory =
 /// Builds a velocity solver from its parameters.
 pub type SolverFactory =
     Arc<dyn Fn(&mut Params<'_>) -> Result<Box<dyn VelocitySolver>, SpecError> + Send + Sync>;
+/// Builds a scene from its parameters and a seed (which places its bodies).
+pub type SceneFactory = Arc<dyn Fn(&mut Params<'_>, u64) -> Result<Scene, SpecError> + Send + Sync>;
 
 /// What the registry knows about a provider besides how to build it.
 ///
@@ -103,11 +106,18 @@ struct SolverEntry {
     factory: SolverFactory,
 }
 
+#[derive(Clone)]
+struct SceneEntry {
+    help: String,
+    factory: SceneFactory,
+}
+
 /// Named factories of warm-start providers and velocity solvers. See the [module](self) docs.
 #[derive(Clone, Default)]
 pub struct Registry {
     providers: BTreeMap<String, ProviderEntry>,
     solvers: BTreeMap<String, SolverEntry>,
+    scenes: BTreeMap<String, SceneEntry>,
 }
 
 impl std::fmt::Debug for Registry {
@@ -115,6 +125,7 @@ impl std::fmt::Debug for Registry {
         f.debug_struct("Registry")
             .field("providers", &self.providers.keys().collect::<Vec<_>>())
             .field("solvers", &self.solvers.keys().collect::<Vec<_>>())
+            .field("scenes", &self.scenes.keys().collect::<Vec<_>>())
             .finish()
     }
 }
@@ -157,6 +168,47 @@ impl Registry {
                 factory: Arc::new(factory),
             },
         );
+    }
+
+    /// Adds (or replaces) a scene factory under `name` (see [`crate::scene::register`]).
+    pub fn register_scene<F>(&mut self, name: &str, help: &str, factory: F)
+    where
+        F: Fn(&mut Params<'_>, u64) -> Result<Scene, SpecError> + Send + Sync + 'static,
+    {
+        self.scenes.insert(
+            name.to_string(),
+            SceneEntry {
+                help: help.to_string(),
+                factory: Arc::new(factory),
+            },
+        );
+    }
+
+    /// Registered scene names with their help lines.
+    pub fn scenes(&self) -> impl Iterator<Item = (&str, &str)> {
+        self.scenes
+            .iter()
+            .map(|(k, e)| (k.as_str(), e.help.as_str()))
+    }
+
+    /// Builds the scene of a parsed spec for `seed`; unknown names and parameters are errors.
+    pub fn scene_from_spec(&self, spec: &Spec, seed: u64) -> Result<Scene, SpecError> {
+        let entry = self
+            .scenes
+            .get(&spec.name)
+            .ok_or_else(|| SpecError::UnknownScene {
+                name: spec.name.clone(),
+                known: Self::known(&self.scenes),
+            })?;
+        let mut params = Params::new(spec);
+        let scene = (entry.factory)(&mut params, seed)?;
+        params.finish()?;
+        Ok(scene)
+    }
+
+    /// Builds a scene from text such as `box-pile:bodies=1000,friction=0.3`.
+    pub fn build_scene(&self, spec: &str, seed: u64) -> Result<Scene, SpecError> {
+        self.scene_from_spec(&spec.parse()?, seed)
     }
 
     /// Registered provider names with their help lines.

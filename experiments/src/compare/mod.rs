@@ -65,6 +65,11 @@ pub struct Config {
     /// Scene of every world, see [`deepcontact_core::scene::by_name`] (default `pile`;
     /// `thesis` starts from the original code's exact initial positions, seeds 12345–12354).
     pub scene: String,
+    /// A registered scene spec (`box-pile:bodies=1000,friction=0.3`, see
+    /// [`deepcontact_core::scene`]); when set it replaces `scene` and `bodies` (default
+    /// `None`).
+    #[serde(serialize_with = "spec_as_string")]
+    pub scene_spec: Option<Spec>,
     /// World settings (default: the thesis's, cap 1000, tolerance 1e-4, ∞-norm).
     #[serde(skip)]
     pub world: WorldSettings,
@@ -83,6 +88,13 @@ pub struct Config {
     pub same_problems: Option<String>,
 }
 
+fn spec_as_string<S: serde::Serializer>(spec: &Option<Spec>, s: S) -> Result<S::Ok, S::Error> {
+    match spec {
+        Some(spec) => s.serialize_some(&spec.to_string()),
+        None => s.serialize_none(),
+    }
+}
+
 fn specs_as_strings<S: serde::Serializer>(specs: &[Spec], s: S) -> Result<S::Ok, S::Error> {
     s.collect_seq(specs.iter().map(|x| x.to_string()))
 }
@@ -99,6 +111,7 @@ impl Default for Config {
             steps: 250,
             bodies: 100,
             scene: "pile".into(),
+            scene_spec: None,
             world: WorldSettings::default(),
             threads: 0,
             progress: true,
@@ -126,6 +139,19 @@ impl Config {
     pub fn driver(&self) -> Option<usize> {
         let label = self.same_problems.as_ref()?;
         self.warm_start_labels().iter().position(|l| l == label)
+    }
+
+    /// The world of `seed`: [`Self::scene_spec`] built by `registry`, else [`Self::scene`]
+    /// with [`Self::bodies`] ([`crate::scene_for`]).
+    pub fn scene_of(
+        &self,
+        registry: &deepcontact_core::Registry,
+        seed: u64,
+    ) -> Result<deepcontact_core::scene::Scene, ExperimentError> {
+        Ok(match &self.scene_spec {
+            Some(spec) => registry.scene_from_spec(spec, seed)?,
+            None => crate::scene_for(registry, &self.scene, seed, self.bodies)?,
+        })
     }
 
     /// Labels of the solvers, in order.
@@ -217,6 +243,18 @@ pub struct StepRecord {
     pub solve_seconds: f64,
     /// Seconds of the whole step.
     pub step_seconds: f64,
+    /// Passes the provider spent, summed over islands.
+    pub provider_passes: u64,
+    /// Mean penetration depth over contact points at the start of the step (m).
+    pub penetration_mean: f64,
+    /// Deepest penetration at the start of the step (m).
+    pub penetration_max: f64,
+    /// Mean normal velocity error after the solve (m/s; see [`StepReport`]).
+    pub normal_velocity_error_mean: f64,
+    /// Largest normal velocity error after the solve (m/s).
+    pub normal_velocity_error_max: f64,
+    /// Kinetic energy at the end of the step (J).
+    pub kinetic_energy: f64,
 }
 
 impl From<&StepReport> for StepRecord {
@@ -236,6 +274,12 @@ impl From<&StepReport> for StepRecord {
             warm_start_seconds: r.warm_start_seconds,
             solve_seconds: r.solve_seconds,
             step_seconds: r.step_seconds,
+            provider_passes: r.provider_passes,
+            penetration_mean: r.penetration_mean,
+            penetration_max: r.penetration_max,
+            normal_velocity_error_mean: r.normal_velocity_error_mean,
+            normal_velocity_error_max: r.normal_velocity_error_max,
+            kinetic_energy: r.kinetic_energy,
         }
     }
 }

@@ -10,7 +10,6 @@
 use std::time::Instant;
 
 use deepcontact_core::Registry;
-use deepcontact_core::scene;
 use deepcontact_pgs::PgsPositionSolver;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
@@ -50,7 +49,7 @@ pub fn run_experiment_until(
         registry.solver_from_spec(s)?;
     }
     for &seed in &config.seeds {
-        scene::by_name(&config.scene, seed, config.bodies)?;
+        config.scene_of(registry, seed)?;
     }
 
     let jobs: Vec<(usize, u64)> = (0..config.solvers.len())
@@ -120,7 +119,7 @@ fn run_lockstep(
     let mut lanes = (0..config.warm_starts.len())
         .map(|warm_start| -> Result<Lane, ExperimentError> {
             Ok(Lane {
-                world: scene::by_name(&config.scene, seed, config.bodies)?.build(config.world)?,
+                world: config.scene_of(registry, seed)?.build(config.world)?,
                 provider: registry.provider_from_spec(&config.warm_starts[warm_start])?,
                 velocity: registry.solver_from_spec(&config.solvers[solver])?,
                 position: PgsPositionSolver::new(),

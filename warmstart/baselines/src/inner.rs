@@ -54,28 +54,46 @@ impl InnerSolve {
         })
     }
 
-    /// Solves `problem` with `solver` from `impulses` (in place); `what` names the solve in
-    /// the error.
+    /// Solves `problem` with `solver` from `impulses` (in place), at most `cap` iterations
+    /// when a budget caps them (`ctx.pass_budget`; below the own cap it wins); `what` names
+    /// the solve in the error. The iterations run are [`Self::passes`].
     pub(crate) fn run(
         &mut self,
         solver: &mut dyn VelocitySolver,
         problem: &ContactProblem,
         impulses: &mut [Impulse],
         what: &str,
+        cap: Option<u32>,
     ) -> Result<(), WarmStartError> {
         self.velocities.clear();
         self.velocities
             .resize(problem.bodies.len(), Velocity::default());
         self.report.clear();
+        let settings = SolverSettings {
+            max_iterations: cap.map_or(self.settings.max_iterations, |c| {
+                self.settings.max_iterations.min(c.max(1))
+            }),
+            ..self.settings
+        };
         solver
             .solve(
                 problem,
-                &self.settings,
+                &settings,
                 impulses,
                 &mut self.velocities,
                 &mut self.report,
             )
             .map_err(|e| WarmStartError::Provider(format!("{what} failed: {e}")))
+    }
+
+    /// Forgets the last solve's report (an island with nothing to solve).
+    pub(crate) fn clear_report(&mut self) {
+        self.report.clear();
+    }
+
+    /// Iterations of the last solve (0 before the first).
+    pub(crate) fn passes(&self) -> u32 {
+        self.report.iterations
     }
 
     /// The report of the last solve.

@@ -255,4 +255,10 @@ impl WarmStart for OracleWarmStart {
     fn reset(&mut self) {
         self.rng = PortableRng::new(self.config.order.seed());
     }
+
+    /// The oracle's own solve, uncapped: it is no contender, and a budget shows what it
+    /// costs.
+    fn passes_spent(&self) -> u32 {
+        self.report.iterations
+    }
 }

@@ -112,10 +112,17 @@ impl WarmStart for PresolveWarmStart {
     ) -> Result<(), WarmStartError> {
         CarriedWarmStart.warm_start(ctx, out)?;
         if out.is_empty() {
+            self.inner.clear_report();
             return Ok(());
         }
         let solver = solver_for(&mut self.solver, &mut self.forks, ctx.island);
-        self.inner.run(solver, ctx.problem, out, "presolve")
+        self.inner
+            .run(solver, ctx.problem, out, "presolve", ctx.pass_budget)
+    }
+
+    /// The inner solve's iterations on the last island (0 on an empty one).
+    fn passes_spent(&self) -> u32 {
+        self.inner.passes()
     }
 }
 

@@ -121,6 +121,8 @@ pub struct RelaxedWarmStart {
     current: Option<(u64, u32)>,
     /// Islands whose sweeps diverged and were dropped.
     dropped: u64,
+    /// Passes of the last island: the start's (when it sweeps) and the sweeps.
+    last_passes: u32,
 }
 
 impl RelaxedWarmStart {
@@ -161,6 +163,7 @@ impl RelaxedWarmStart {
             steps: 0,
             current: None,
             dropped: 0,
+            last_passes: 0,
         })
     }
 
@@ -229,8 +232,12 @@ impl WarmStart for RelaxedWarmStart {
         ctx: &WarmStartContext<'_>,
         out: &mut [Impulse],
     ) -> Result<(), WarmStartError> {
+        self.last_passes = 0;
         match &mut self.start {
-            Some(start) => start.warm_start(ctx, out)?,
+            Some(start) => {
+                start.warm_start(ctx, out)?;
+                self.last_passes = start.passes_spent();
+            }
             None => CarriedWarmStart.warm_start(ctx, out)?,
         }
         if out.is_empty() {
@@ -274,8 +281,18 @@ impl WarmStart for RelaxedWarmStart {
             }
         }
         r.manifolds.extend_from_slice(&problem.manifolds);
-        self.inner
-            .run(&mut self.solver, &self.relaxed, out, "over-relaxed sweeps")?;
+        // Under a budget the start's own passes come out of the sweeps' share.
+        let cap = ctx
+            .pass_budget
+            .map(|b| b.saturating_sub(self.last_passes).max(1));
+        self.inner.run(
+            &mut self.solver,
+            &self.relaxed,
+            out,
+            "over-relaxed sweeps",
+            cap,
+        )?;
+        self.last_passes += self.inner.passes();
         let (sweeps, changes) = (
             self.inner.report().iterations,
             &self.inner.report().residual_inf,
@@ -323,5 +340,10 @@ impl WarmStart for RelaxedWarmStart {
             ("mean_sweeps_slowest_island".into(), mean(sum, steps)),
             ("dropped".into(), self.dropped as Real),
         ]
+    }
+
+    /// The start's passes (when it sweeps) and the over-relaxed sweeps, of the last island.
+    fn passes_spent(&self) -> u32 {
+        self.last_passes
     }
 }

@@ -114,4 +114,7 @@ impl<W: WarmStart> WarmStart for Rounded<W> {
     fn reset(&mut self) {
         self.inner.reset();
     }
+    fn passes_spent(&self) -> u32 {
+        self.inner.passes_spent()
+    }
 }
