@@ -125,4 +125,10 @@ impl WarmStart for BestOfWarmStart {
             .map(|(c, &w)| (format!("share_{}", c.name()), w as Real / total))
             .collect()
     }
+
+    /// Every candidate's passes, and one per candidate for scoring it (its velocities and
+    /// residual are a pass over the rows).
+    fn passes_spent(&self) -> u32 {
+        self.candidates.iter().map(|c| c.passes_spent() + 1).sum()
+    }
 }

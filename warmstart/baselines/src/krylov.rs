@@ -70,6 +70,8 @@ pub struct KrylovWarmStart {
     p: Vec<Real>,
     q: Vec<Real>,
     dv: Vec<Velocity>,
+    /// Passes over the rows on the last island (see `passes_spent`).
+    last_passes: u32,
 }
 
 impl KrylovWarmStart {
@@ -107,6 +109,7 @@ impl KrylovWarmStart {
             p: Vec::new(),
             q: Vec::new(),
             dv: Vec::new(),
+            last_passes: 0,
         })
     }
 
@@ -157,13 +160,16 @@ impl KrylovWarmStart {
         rz
     }
 
-    /// `iterations` Jacobi-preconditioned CG steps on `W_AA x = r` from `x = 0`.
-    fn conjugate_gradient(&mut self, problem: &ContactProblem, mut rz: Real) {
+    /// At most `iterations` Jacobi-preconditioned CG steps on `W_AA x = r` from `x = 0`;
+    /// returns the steps taken.
+    fn conjugate_gradient(&mut self, problem: &ContactProblem, mut rz: Real) -> u32 {
         let rows = self.x.len();
+        let mut steps = 0;
         for _ in 0..self.config.iterations {
             if rz <= 0.0 {
                 break;
             }
+            steps += 1;
             apply_jt(problem, &self.p, &mut self.dv);
             let (mut pq, mut pdp) = (0.0, 0.0);
             for k in 0..rows {
@@ -199,6 +205,7 @@ impl KrylovWarmStart {
                 self.p[k] = self.z[k] + beta * self.p[k];
             }
         }
+        steps
     }
 }
 
@@ -213,13 +220,15 @@ impl WarmStart for KrylovWarmStart {
         out: &mut [Impulse],
     ) -> Result<(), WarmStartError> {
         CarriedWarmStart.warm_start(ctx, out)?;
+        self.last_passes = 0;
         if out.is_empty() {
             return Ok(());
         }
         for _ in 0..self.config.rounds {
             self.select_active(ctx.problem, out);
             let rz = self.residual(ctx.problem, out);
-            self.conjugate_gradient(ctx.problem, rz);
+            // The residual is one pass over the rows, a CG step two (W applied matrix-free).
+            self.last_passes += 1 + 2 * self.conjugate_gradient(ctx.problem, rz);
             for (i, (o, p)) in out.iter_mut().zip(&ctx.problem.points).enumerate() {
                 *o = in_cone(
                     o.normal + self.x[2 * i],
@@ -229,5 +238,11 @@ impl WarmStart for KrylovWarmStart {
             }
         }
         Ok(())
+    }
+
+    /// One pass per round for its residual and two per conjugate-gradient step (each an
+    /// application of W over the rows), on the last island.
+    fn passes_spent(&self) -> u32 {
+        self.last_passes
     }
 }

@@ -214,6 +214,12 @@ impl WarmStart for TailWarmStart {
         self.rate_count = 0;
     }
 
+    /// The extra sweeps it runs on every island after the solve (in `observe`), which make
+    /// the next step's start: its cost per island and step.
+    fn passes_spent(&self) -> u32 {
+        self.config.sweeps
+    }
+
     fn diagnostics(&self) -> Vec<(String, Real)> {
         let mean = if self.rate_count > 0 {
             self.rate_sum / self.rate_count as Real
