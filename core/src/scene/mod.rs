@@ -417,6 +417,18 @@ mod tests {
             r.build_scene("pyramid:base=20", 1).unwrap().dynamic_count(),
             210
         );
+        // Jitter never makes neighbours of a row overlap (unit boxes: centres ≥ 1 m apart).
+        for seed in 0..20 {
+            let scene = r.build_scene("pyramid:base=8,jitter=0.05", seed).unwrap();
+            let gaps: Vec<Real> = scene.bodies[1..]
+                .windows(2)
+                .filter(|w| w[0].position.y == w[1].position.y)
+                .map(|w| w[1].position.x - w[0].position.x)
+                .collect();
+            assert_eq!(gaps.len(), 8 * 7 / 2, "seed {seed}");
+            assert!(gaps.iter().all(|&g| g >= 1.0), "seed {seed}: {gaps:?}");
+            assert!(gaps.iter().any(|&g| g != 1.1), "seed {seed}: no shift");
+        }
     }
 
     #[test]

@@ -121,16 +121,18 @@ pub fn pyramid(base: usize) -> Scene {
 }
 
 fn pyramid_jittered(base: usize, material: Material, mut jitter: Option<&mut Jitter>) -> Scene {
-    let width = base as Real * 2.0 * HALF + 4.0;
+    // Neighbours stand 2 × jitter apart, so no shift makes two boxes overlap.
+    let pitch = 2.0 * HALF + 2.0 * jitter.as_ref().map_or(0.0, |j| j.size);
+    let width = base as Real * pitch + 4.0;
     let mut bodies = vec![ground(width).with_material(material)];
     for row in 0..base {
         let count = base - row;
         let y = HALF + row as Real * 2.0 * HALF;
-        let x0 = -(count as Real - 1.0) * HALF;
+        let x0 = -(count as Real - 1.0) * 0.5 * pitch;
         for i in 0..count {
             let dx = jitter.as_mut().map_or(0.0, |j| j.next());
             bodies.push(
-                unit_box(Vector::new(x0 + i as Real * 2.0 * HALF + dx, y)).with_material(material),
+                unit_box(Vector::new(x0 + i as Real * pitch + dx, y)).with_material(material),
             );
         }
     }
@@ -144,7 +146,8 @@ fn pyramid_jittered(base: usize, material: Material, mut jitter: Option<&mut Jit
 }
 
 /// A pyramid of `params.count` boxes at the base ([`pyramid`] with friction and seeded
-/// jitter; the ratio is not used).
+/// jitter; the ratio is not used). With jitter the boxes of a row stand `2 × jitter` apart
+/// before their shifts, so none overlaps its neighbour.
 pub fn pyramid_with(seed: u64, params: &StackParams) -> Result<Scene, CoreError> {
     let (material, mut jitter) = params.prepare("pyramid.base", seed)?;
     Ok(pyramid_jittered(params.count, material, Some(&mut jitter)))
