@@ -86,13 +86,15 @@ pub fn suite_md(results: &SuiteResults, rows: &[SuiteRow]) -> String {
     };
     let _ = writeln!(
         s,
-        "{} scenes × {} budgets, {seeds}, {} steps each, {:.1} s wall time. Under a budget K every \
+        "{} scene{} × {} budget{}, {seeds}, {} steps each, {:.1} s wall time. Under a budget K every \
          island gets K passes per step: the provider's own (`provider_passes`) and the solver's \
          (`solver_passes`), and the position pass runs {} iterations in full. `tolerance`: the \
          solver iterates until max |Δλ| < {:e} or {} iterations, the position pass until its own \
          stop rule (cap {}).\n",
         c.scenes.len(),
+        if c.scenes.len() == 1 { "" } else { "s" },
         c.budgets.len(),
+        if c.budgets.len() == 1 { "" } else { "s" },
         b.steps,
         results.wall_seconds,
         c.position_passes,
