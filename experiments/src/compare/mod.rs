@@ -50,7 +50,7 @@ pub const RESIDUAL_FIGURE_ITERATIONS: usize = 500;
 /// What to run. [`Config::default`] is the thesis's comparison.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Config {
-    /// Warm-start specs (default: `none, builtin, random, bad, copy, copy2, copy0`).
+    /// Warm-start specs (default: the 19 of [`DEFAULT_WARM_STARTS`]).
     #[serde(serialize_with = "specs_as_strings")]
     pub warm_starts: Vec<Spec>,
     /// Velocity solver specs (default: `pgs`).
