@@ -21,7 +21,7 @@ pub fn scene_for(
 }
 
 /// Every provider and solver this build knows: `pgs` (deepcontact-pgs), `psor` and `newton`
-/// (deepcontact-lcp), the baselines (deepcontact-warmstart), `grid` (deepcontact-grid), the
+/// (deepcontact-lcp), the soft step `soft` (deepcontact-soft), the baselines (deepcontact-warmstart), `grid` (deepcontact-grid), the
 /// contact-graph network `graph` and `graph-file:` (deepcontact-graph) and,
 /// with the `onnx` feature, the CNNs `pressure`, `peak` and `onnx:` (deepcontact-onnx).
 /// The CLI, benches, fuzz targets and tests all use this one; add your own entries to it.
@@ -29,6 +29,7 @@ pub fn scene_for(
 /// ```
 /// let registry = deepcontact_experiments::full_registry();
 /// assert!(registry.build_solver("psor:omega=1.2").is_ok());
+/// assert!(registry.build_solver("soft:substeps=4,relax=1").is_ok());
 /// assert!(registry.provider_info("copy").unwrap().oracle);
 /// ```
 pub fn full_registry() -> Registry {
@@ -36,6 +37,7 @@ pub fn full_registry() -> Registry {
     deepcontact_core::scene::register(&mut registry);
     deepcontact_pgs::register(&mut registry);
     deepcontact_lcp::register(&mut registry);
+    deepcontact_soft::register(&mut registry);
     deepcontact_warmstart::register(&mut registry);
     deepcontact_grid::register(&mut registry);
     deepcontact_graph::register(&mut registry);
