@@ -165,6 +165,50 @@ fn free_fall_inside_the_step_is_symplectic_euler_over_the_substeps() {
     assert_eq!(out.displacements[0], Pose::default());
 }
 
+/// A box hitting the ground at 3 m/s with restitution 0.5 bounces, after the substeps, by one
+/// restitution pass towards the problem's target `−e vn` (measured by the world after the
+/// step's gravity).
+#[test]
+fn restitution_bounces_the_box_in_one_pass_towards_the_target() {
+    let mut p = ContactProblem::new();
+    p.add_body(ProblemBody::fixed(Vector::new(0.0, -0.5)));
+    let v = Vector::new(0.0, -3.0 + DT * G);
+    p.add_body(ProblemBody::dynamic(
+        Vector::new(0.0, 0.5),
+        0.0,
+        v,
+        0.0,
+        1.0,
+        1.0 / 6.0,
+    ));
+    p.begin_manifold();
+    for x in [-0.5, 0.5] {
+        let desc =
+            PointDesc::new(0, 1, Vector::new(x, 0.0), Vector::new(0.0, 1.0)).restitution(0.5, 1.0);
+        p.add_point(&desc).unwrap();
+    }
+    let target = p.points[0].velocity_bias;
+    assert!((target - 0.5 * (3.0 - DT * G)).abs() < 1e-12);
+    let out = solve(
+        &mut SoftSolver::new(),
+        &p,
+        &SolverSettings::default(),
+        &[Impulse::ZERO; 2],
+    );
+    // One Gauss-Seidel pass over the two corners from rest, as Box2D's single restitution
+    // pass: the corner mass is 1 / (1 + 6 × 0.5²) = 0.4; the first corner's impulse turns
+    // the box (ω = −3 λ1), the second corner then closes at −λ1 / 2.
+    let k = 2.5;
+    let l1 = target / k;
+    let l2 = (target + 0.5 * l1) / k;
+    let expected = l1 + l2;
+    let vy = out.velocities[1].linear.y;
+    assert!(
+        (vy - expected).abs() < 0.01 * expected,
+        "vy = {vy}, one pass from rest gives {expected} (target {target})"
+    );
+}
+
 /// Under a fixed budget of K passes the solve spends at most K, one residual each.
 #[test]
 fn a_fixed_budget_of_k_passes_is_respected() {
