@@ -2,7 +2,7 @@
 
 use crate::contact::Impulse;
 use crate::error::CoreError;
-use crate::math::{Pose, Real, Velocity};
+use crate::math::{Pose, Real, Vector, Velocity};
 use crate::problem::ContactProblem;
 use crate::report::SolveReport;
 
@@ -250,9 +250,52 @@ pub trait VelocitySolver: Send {
 
     /// A solver with the same settings for another thread, which must solve every problem
     /// to the same bits as this one (default `None`: islands are solved one after another).
-    /// The world asks for forks when [`crate::WorldSettings::island_threads`] > 1.
+    /// The world asks for forks when [`crate::WorldSettings::island_threads`] > 1, after
+    /// [`Self::begin_step`], so a fork keeps what that call told the solver.
     fn fork(&self) -> Option<Box<dyn VelocitySolver>> {
         None
+    }
+
+    /// The world step's length `dt` (s) and `gravity` (m/s²), told once per step before its
+    /// solves (default: ignored). A solver that integrates inside the step (substeps) needs
+    /// them; the problem's velocities already hold the whole step's `dt × gravity`.
+    fn begin_step(&mut self, dt: Real, gravity: Vector) {
+        let _ = (dt, gravity);
+    }
+
+    /// Whether the solver moves its islands' bodies itself (default `false`). When `true`,
+    /// the world solves each island with [`Self::solve_with_positions`], moves the island's
+    /// dynamic bodies by the displacements it returns (instead of `dt ×` their velocity) and
+    /// runs no position pass on them.
+    fn owns_positions(&self) -> bool {
+        false
+    }
+
+    /// [`Self::solve`], also integrating positions over the step: `displacements` (one per
+    /// body of `problem`) receives each body's change of position (m) and angle (rad) since
+    /// the problem was built. Only called when [`Self::owns_positions`] is `true`; the
+    /// default, for solvers that do not, is an error.
+    fn solve_with_positions(
+        &mut self,
+        problem: &ContactProblem,
+        settings: &SolverSettings,
+        impulses: &mut [Impulse],
+        velocities: &mut [Velocity],
+        displacements: &mut [Pose],
+        report: &mut SolveReport,
+    ) -> Result<(), CoreError> {
+        let _ = (
+            problem,
+            settings,
+            impulses,
+            velocities,
+            displacements,
+            report,
+        );
+        Err(CoreError::Solver {
+            solver: self.name().to_string(),
+            reason: "does not integrate positions (owns_positions is false)".into(),
+        })
     }
 }
 
@@ -275,6 +318,30 @@ impl<S: VelocitySolver + ?Sized> VelocitySolver for Box<S> {
     }
     fn fork(&self) -> Option<Box<dyn VelocitySolver>> {
         (**self).fork()
+    }
+    fn begin_step(&mut self, dt: Real, gravity: Vector) {
+        (**self).begin_step(dt, gravity);
+    }
+    fn owns_positions(&self) -> bool {
+        (**self).owns_positions()
+    }
+    fn solve_with_positions(
+        &mut self,
+        problem: &ContactProblem,
+        settings: &SolverSettings,
+        impulses: &mut [Impulse],
+        velocities: &mut [Velocity],
+        displacements: &mut [Pose],
+        report: &mut SolveReport,
+    ) -> Result<(), CoreError> {
+        (**self).solve_with_positions(
+            problem,
+            settings,
+            impulses,
+            velocities,
+            displacements,
+            report,
+        )
     }
 }
 

@@ -1,4 +1,25 @@
 //! The world and its step pipeline.
+//!
+//! **Solvers that own positions (the soft step).** A velocity solver that integrates inside
+//! the step, as Box2D v3's substeps do (`deepcontact-soft`), says so with
+//! [`VelocitySolver::owns_positions`]. The pipeline keeps its stages and order; for such a
+//! solver:
+//! * before the solves, [`VelocitySolver::begin_step`] tells it the step's `dt` and gravity
+//!   (every solver is told; the others ignore it). The problem's velocities still hold the
+//!   whole step's gravity from IntegrateVelocities: the solver takes it back out and applies
+//!   it per substep;
+//! * each island is solved by [`VelocitySolver::solve_with_positions`] (one island a call,
+//!   on any thread: the results do not depend on the thread count), which also returns each
+//!   body's displacement over the step;
+//! * IntegratePositions moves the islands' dynamic bodies by those displacements instead of
+//!   `dt ×` their velocities (the same translation and rotation clamps, applied to the
+//!   displacement and scaling the velocity with it); bodies in no island, and kinematic
+//!   bodies, move by `dt × v` as always;
+//! * PositionPass does not run on those islands (the soft contacts and relax passes already
+//!   handled the overlap); the report's smallest separation is measured at the new poses.
+//!
+//! For every other solver (`pgs`, `psor`, `newton`) none of this runs and the step is
+//! unchanged to the bit.
 
 use std::time::Instant;
 
@@ -198,6 +219,12 @@ struct Scratch {
     dynamic: Vec<bool>,
     /// Final impulse of every narrow-phase contact this step.
     solved: Vec<Impulse>,
+    /// Whether this step's solver moves its islands' bodies itself
+    /// ([`VelocitySolver::owns_positions`]).
+    owns_positions: bool,
+    /// With [`Self::owns_positions`], per world body: its displacement over the step, for the
+    /// dynamic bodies of the islands (empty otherwise).
+    displacements: Vec<Option<Pose>>,
 }
 
 /// One island's buffers for a step (reused between steps).
@@ -214,6 +241,8 @@ struct IslandWork {
     /// The solved impulses and body velocities.
     impulses: Vec<Impulse>,
     velocities: Vec<Velocity>,
+    /// The body displacements over the step, from a solver that owns positions.
+    displacements: Vec<Pose>,
     report: SolveReport,
     /// The solve's error, if it failed.
     error: Option<CoreError>,
@@ -487,6 +516,14 @@ impl World {
                     self.warm_start_island(k, s, plugins, report)?;
                 }
                 let t0 = Instant::now();
+                plugins
+                    .solver
+                    .begin_step(self.settings.dt, self.settings.gravity);
+                s.owns_positions = plugins.solver.owns_positions();
+                s.displacements.clear();
+                if s.owns_positions {
+                    s.displacements.resize(self.bodies.len(), None);
+                }
                 self.solve_islands(s, plugins.solver);
                 report.solve_seconds += t0.elapsed().as_secs_f64();
                 for k in 0..s.problems.len() {
@@ -494,7 +531,7 @@ impl World {
                 }
                 report.finish_islands();
             }
-            Stage::IntegratePositions => self.integrate_positions(),
+            Stage::IntegratePositions => self.integrate_positions(s),
             Stage::PositionPass => self.position_pass(s, plugins.position_solver, report)?,
             Stage::StoreImpulses => self.store_impulses(s),
         }
@@ -597,6 +634,7 @@ impl World {
     fn solve_islands(&self, s: &mut Scratch, solver: &mut dyn VelocitySolver) {
         let settings = &self.settings.solver;
         let budget = self.settings.budget;
+        let owns_positions = s.owns_positions;
         let solve =
             |solver: &mut dyn VelocitySolver, problem: &ContactProblem, w: &mut IslandWork| {
                 w.reset_buffers(problem);
@@ -604,15 +642,28 @@ impl World {
                     Some(k) => budget_settings(settings, k, w.passes_spent),
                     None => *settings,
                 };
-                w.error = solver
-                    .solve(
+                w.error = if owns_positions {
+                    w.displacements.clear();
+                    w.displacements
+                        .resize(problem.bodies.len(), Pose::default());
+                    solver.solve_with_positions(
+                        problem,
+                        &island_settings,
+                        &mut w.impulses,
+                        &mut w.velocities,
+                        &mut w.displacements,
+                        &mut w.report,
+                    )
+                } else {
+                    solver.solve(
                         problem,
                         &island_settings,
                         &mut w.impulses,
                         &mut w.velocities,
                         &mut w.report,
                     )
-                    .err();
+                }
+                .err();
             };
         let threads = self.settings.island_threads.min(s.problems.len());
         // Side by side only when no island outweighs a thread's share of the points (else
@@ -629,8 +680,9 @@ impl World {
         } else {
             Vec::new()
         };
-        if forks.len() < 2 && budget.is_some() {
-            // Each island has its own share of the budget: one call per island.
+        if forks.len() < 2 && (budget.is_some() || owns_positions) {
+            // Each island has its own share of the budget, or a solver that moves its bodies
+            // solves it: one call per island.
             for (problem, w) in s.problems.iter().zip(&mut s.islands) {
                 solve(solver, problem, w);
             }
@@ -733,18 +785,46 @@ impl World {
                 body.angular_velocity = v.angular;
             }
         }
+        if s.owns_positions {
+            for (pb, d) in s.problems[k].bodies.iter().zip(&work.displacements) {
+                if self.bodies[pb.world_index as usize].kind == BodyKind::Dynamic {
+                    s.displacements[pb.world_index as usize] = Some(*d);
+                }
+            }
+        }
         Ok(())
     }
 
-    /// Positions from the solved velocities, with Box2D's translation and rotation clamps.
-    fn integrate_positions(&mut self) {
+    /// Positions from the solved velocities, with Box2D's translation and rotation clamps;
+    /// the dynamic bodies of the islands of a solver that owns positions move by the
+    /// displacements it returned instead (the same clamps on the displacement, the velocity
+    /// scaled with it).
+    fn integrate_positions(&mut self, s: &Scratch) {
         let settings = self.settings;
         let dt = settings.dt;
-        for b in self
+        for (i, b) in self
             .bodies
             .iter_mut()
-            .filter(|b| b.kind != BodyKind::Static)
+            .enumerate()
+            .filter(|(_, b)| b.kind != BodyKind::Static)
         {
+            if let Some(Some(d)) = s.displacements.get(i) {
+                let mut dp = d.position;
+                if dp.norm_squared() > settings.max_translation.powi(2) {
+                    let ratio = settings.max_translation / dp.norm();
+                    dp *= ratio;
+                    b.linear_velocity *= ratio;
+                }
+                let mut da = d.angle;
+                if da.abs() > settings.max_rotation {
+                    let ratio = settings.max_rotation / da.abs();
+                    da *= ratio;
+                    b.angular_velocity *= ratio;
+                }
+                b.position += dp;
+                b.angle += da;
+                continue;
+            }
             let mut v = b.linear_velocity;
             let dx = dt * v;
             if dx.norm_squared() > settings.max_translation.powi(2) {
@@ -769,6 +849,15 @@ impl World {
         report: &mut StepReport,
     ) -> Result<(), CoreError> {
         let mut min_sep = Real::INFINITY;
+        if s.owns_positions {
+            // The solver moved these islands' bodies: no position pass, the separations at
+            // the new poses.
+            for problem in &s.problems {
+                min_sep = min_sep.min(self.min_separation_now(problem));
+            }
+            report.min_separation = if min_sep.is_finite() { min_sep } else { 0.0 };
+            return Ok(());
+        }
         for problem in &s.problems {
             s.poses.clear();
             s.poses.extend(problem.bodies.iter().map(|pb| {
@@ -789,6 +878,28 @@ impl World {
         }
         report.min_separation = if min_sep.is_finite() { min_sep } else { 0.0 };
         Ok(())
+    }
+
+    /// The smallest separation of `problem`'s points at the bodies' current poses (m;
+    /// infinite without points): each point's separation moved by its bodies' displacements
+    /// since the problem was built, `(Δc_b + rot(Δθ_b) r_b − r_b − Δc_a − rot(Δθ_a) r_a + r_a)
+    /// · n`, the normal held fixed.
+    fn min_separation_now(&self, problem: &ContactProblem) -> Real {
+        let moved = |pb: &ProblemBody, r: &Vector| {
+            let b = &self.bodies[pb.world_index as usize];
+            (b.position - pb.position) + crate::math::rotate(r, b.angle - pb.angle) - r
+        };
+        problem
+            .points
+            .iter()
+            .map(|p| {
+                let (a, b) = (
+                    &problem.bodies[p.body_a as usize],
+                    &problem.bodies[p.body_b as usize],
+                );
+                p.separation + (moved(b, &p.r_b) - moved(a, &p.r_a)).dot(&p.normal)
+            })
+            .fold(Real::INFINITY, Real::min)
     }
 
     /// Keeps this step's impulses, sorted by id, for the next step's matching.
@@ -839,9 +950,11 @@ pub enum Stage {
     /// island's velocity solve (side by side with [`WorldSettings::island_threads`]) → every
     /// island's observation, in island order.
     SolveIslands,
-    /// Positions from velocities, clamped per step.
+    /// Positions from velocities, clamped per step (or, for the islands of a solver that
+    /// owns positions, by the displacements it returned; see the module docs).
     IntegratePositions,
-    /// Non-linear Gauss-Seidel position correction per island.
+    /// Non-linear Gauss-Seidel position correction per island (none for the islands of a
+    /// solver that owns positions).
     PositionPass,
     /// This step's impulses kept for the next step's matching.
     StoreImpulses,

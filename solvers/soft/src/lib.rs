@@ -37,7 +37,10 @@
 //! restitution are not counted. The report's `iterations` is the passes spent, one residual
 //! per pass (max and root-sum-square of the impulse changes, converted to N·s per step: the
 //! substep change × the substep count). How a fixed budget `K` maps onto substeps:
-//! [`schedule`].
+//! [`schedule`]. The soft step never stops early: `converged` says whether the last pass's
+//! change met the stop rule (a relax pass after a soft pass rarely changes nothing, so most
+//! steps count as capped), and `natural_residual` is measured as `pgs` measures it, on the
+//! rigid problem at the final velocities.
 //!
 //! **Order.** Rows are swept in the problem's manifold order, normal rows first, then
 //! friction rows (Box2D v3.1's order; its colouring changes only the order of manifolds).
@@ -326,6 +329,38 @@ impl VelocitySolver for SoftSolver {
         let mut fork = SoftSolver::with_settings(self.settings);
         (fork.dt, fork.gravity) = (self.dt, self.gravity);
         Some(Box::new(fork))
+    }
+
+    /// Keeps the step's `dt` (s) and `gravity` (m/s²) for the solves of the step.
+    fn begin_step(&mut self, dt: Real, gravity: Vector) {
+        self.dt = dt;
+        self.gravity = gravity;
+    }
+
+    /// `true`: the soft step integrates positions inside its substeps.
+    fn owns_positions(&self) -> bool {
+        true
+    }
+
+    /// The soft step of the crate docs; `displacements` receives each body's change of
+    /// position (m) and angle (rad) over the step (`Σ h v`, `Σ h ω` over the substeps).
+    fn solve_with_positions(
+        &mut self,
+        problem: &ContactProblem,
+        settings: &SolverSettings,
+        impulses: &mut [Impulse],
+        velocities: &mut [Velocity],
+        displacements: &mut [Pose],
+        report: &mut SolveReport,
+    ) -> Result<(), CoreError> {
+        self.solve_step(
+            problem,
+            settings,
+            impulses,
+            velocities,
+            displacements,
+            report,
+        )
     }
 }
 
