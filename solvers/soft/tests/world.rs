@@ -123,6 +123,46 @@ fn one_and_two_island_threads_give_the_same_bits() {
     assert_eq!(bits(1), bits(2));
 }
 
+/// Under the world's pass budget (`WorldSettings::budget = Some(K)`, the builtin provider
+/// spending none) every island's solve spends at most K passes.
+#[test]
+fn the_world_pass_budget_holds() {
+    for k in [2, 3, 4, 8, 9] {
+        let settings = WorldSettings {
+            budget: Some(k),
+            ..WorldSettings::default()
+        };
+        let mut world = scene::pyramid(5).build(settings).unwrap();
+        for r in run(&mut world, &mut soft(4, 1), 50) {
+            assert!(
+                r.velocity_iterations <= k,
+                "K = {k}: {}",
+                r.velocity_iterations
+            );
+        }
+    }
+}
+
+/// The hard-contact solvers keep the trait's defaults: they do not own positions, and asking
+/// one to integrate them is an error, not a silent `dt × v`.
+#[test]
+fn hard_solvers_do_not_own_positions() {
+    use deepcontact_core::{Impulse, Pose, SolveReport, Velocity, VelocitySolver};
+    let mut pgs = deepcontact_pgs::PgsSolver::new();
+    assert!(!pgs.owns_positions());
+    assert!(soft(4, 1).owns_positions());
+    let problem = deepcontact_core::ContactProblem::new();
+    let result = pgs.solve_with_positions(
+        &problem,
+        &SolverSettings::default(),
+        &mut [] as &mut [Impulse],
+        &mut [] as &mut [Velocity],
+        &mut [] as &mut [Pose],
+        &mut SolveReport::default(),
+    );
+    assert!(result.is_err());
+}
+
 /// Under a fixed budget of K passes (tolerance 0, cap K) no island spends more than K.
 #[test]
 fn a_fixed_budget_of_k_passes_holds_in_the_world() {
