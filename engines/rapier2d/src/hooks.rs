@@ -1,0 +1,542 @@
+//! [`WarmStartHooks`]: rapier2d `PhysicsHooks` that let any deepcontact [`WarmStart`] provider
+//! set rapier's contact warm starts.
+//!
+//! **Grouping.** rapier calls `modify_solver_contacts` once per contact manifold (collider
+//! pair and sub-shape pair) from inside its narrow phase, before islands exist, and the
+//! start must be written during that call. The adapter therefore builds one deepcontact
+//! [`ContactProblem`] per manifold: the two bodies (mass, inertia, velocities with this
+//! step's gravity added, as deepcontact's problems have them) and the manifold's points (at
+//! most 2 in 2D). Providers that read only the carried impulses (`none`, `builtin`,
+//! `extrapolate`, ...) behave exactly as in deepcontact; providers that sweep the problem
+//! (`sor`, `learned-sor`, the `graph` model) see one pair at a time, without the weight of
+//! the bodies resting on it. Island-sized problems would need the whole contact graph before
+//! the first write, which rapier 0.34's hooks do not give (a second narrow phase per step
+//! would).
+//!
+//! **Carried impulses.** rapier carries each point's impulse itself: parry2d's manifold
+//! generators copy a point's data to the new point with the same feature ids, and the
+//! one-point generators (ball against ball or polygon) update the point in place, keeping its
+//! data when a feature id changes. The adapter hands the provider exactly what rapier carried
+//! (`SolverContact::warmstart_impulse`, in per-step units), so `builtin` reproduces native
+//! rapier bit for bit; a map of last step's impulses by [`PointKey`] alone lost the in-place
+//! carries (measured: a ball–polygon pair of a 30-body pile diverged at step 38). The key
+//! still names each point: it is the problem's [`ContactId`].
+//!
+//! **Threads.** rapier may call the hook from several threads (its `parallel` feature); the
+//! provider sits behind a [`Mutex`], so calls are serialised, and their order may vary from
+//! run to run under `parallel`: [`WarmStartHooks::finish_step`] calls `observe` in a fixed
+//! (pair, sub-shape) order. `ctx.island` is the manifold's index in call order and
+//! `ctx.island_count` the manifolds seen so far (the total is unknown during the step).
+//!
+//! **Units and signs:** see [`crate::units`].
+
+use std::sync::{Mutex, MutexGuard};
+use std::time::Instant;
+
+use deepcontact_core::warm_start::check_output;
+use deepcontact_core::{
+    ContactId, ContactProblem, Impulse, Observation, PointDesc, ProblemBody, Real, SolveReport,
+    Vector, WarmStart, WarmStartContext,
+};
+use rapier2d::prelude::*;
+
+use crate::error::AdapterError;
+use crate::units::{solved_per_step, substeps, to_step, to_substep};
+
+/// What the adapter does when the provider fails or writes an unusable start for a manifold.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum OnFailure {
+    /// Keep rapier's own carried warm start for that manifold (native behaviour) and count it
+    /// in [`StepStats::fallbacks`] (default).
+    #[default]
+    Carried,
+    /// Start that manifold from zeros and count it.
+    Zero,
+    /// Keep rapier's own warm start, count it, and have [`WarmStartHooks::finish_step`]
+    /// return the first error.
+    Error,
+}
+
+/// Settings of [`WarmStartHooks`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct HookSettings {
+    /// What a failing provider gets (default [`OnFailure::Carried`]).
+    pub on_failure: OnFailure,
+    /// [`WarmStartContext::pass_budget`] given to the provider per manifold (default `None`:
+    /// the provider sweeps as its own settings say).
+    pub pass_budget: Option<u32>,
+}
+
+/// What the hooks did during one step.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct StepStats {
+    /// Manifolds warm-started by the provider (or its fallback).
+    pub manifolds: usize,
+    /// Contact points warm-started.
+    pub points: usize,
+    /// Manifolds whose provider output was rejected (guard or problem error) and replaced.
+    pub fallbacks: usize,
+    /// Wall time of the provider's `warm_start` and `observe` calls and of building its
+    /// problems (s).
+    pub provider_seconds: Real,
+    /// Passes the provider reported ([`WarmStart::passes_spent`]), summed over manifolds.
+    pub provider_passes: u64,
+}
+
+/// Identity of a rapier contact point across steps: the collider pair (handles as raw
+/// `(index, generation)`), the sub-shapes and the feature ids parry2d tracks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct PointKey {
+    /// Collider 1 of the pair, `(index, generation)`.
+    pub collider1: (u32, u32),
+    /// Collider 2 of the pair, `(index, generation)`.
+    pub collider2: (u32, u32),
+    /// Sub-shape of collider 1 (0 for a convex shape).
+    pub subshape1: u32,
+    /// Sub-shape of collider 2.
+    pub subshape2: u32,
+    /// Packed feature id on collider 1.
+    pub fid1: u32,
+    /// Packed feature id on collider 2.
+    pub fid2: u32,
+}
+
+impl PointKey {
+    /// The deepcontact [`ContactId`] of the point: the colliders' indices as the body pair,
+    /// each feature packed as `subshape << 32 | fid` (the core's layout for composite shapes).
+    pub fn contact_id(&self) -> ContactId {
+        ContactId {
+            body_a: self.collider1.0,
+            body_b: self.collider2.0,
+            feature_a: (u64::from(self.subshape1) << 32) | u64::from(self.fid1),
+            feature_b: (u64::from(self.subshape2) << 32) | u64::from(self.fid2),
+        }
+    }
+}
+
+/// This step's settings, from [`WarmStartHooks::begin_step`].
+#[derive(Debug, Clone, Copy)]
+struct Frame {
+    dt: Real,
+    gravity: Vector,
+    substeps: u32,
+    coefficient: Real,
+    passes: u32,
+}
+
+/// One manifold warm-started this step, kept for `observe`.
+#[derive(Debug)]
+struct Pending {
+    collider1: ColliderHandle,
+    collider2: ColliderHandle,
+    subshape1: u32,
+    subshape2: u32,
+    island: usize,
+    /// Manifold point index of each problem point.
+    contacts: Vec<u32>,
+    problem: ContactProblem,
+    carried: Vec<Option<Impulse>>,
+    /// Per point, the per-substep `(normal, tangent)` written into the solver contact.
+    written: Vec<(f32, f32)>,
+    fell_back: bool,
+}
+
+struct State {
+    provider: Box<dyn WarmStart>,
+    settings: HookSettings,
+    frame: Option<Frame>,
+    step: u64,
+    pending: Vec<Pending>,
+    stats: StepStats,
+    error: Option<AdapterError>,
+    unbegun: usize,
+}
+
+/// rapier2d `PhysicsHooks` driving rapier's contact warm starts from a deepcontact provider.
+///
+/// Give every collider `ActiveHooks::MODIFY_SOLVER_CONTACTS`, call [`Self::begin_step`]
+/// before and [`Self::finish_step`] after each `PhysicsPipeline::step` that receives the
+/// hooks (or use [`crate::RapierWorld::step`], which does both).
+pub struct WarmStartHooks {
+    state: Mutex<State>,
+}
+
+impl std::fmt::Debug for WarmStartHooks {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let name = self
+            .state
+            .lock()
+            .map(|s| s.provider.name().to_string())
+            .unwrap_or_else(|_| "<poisoned>".into());
+        f.debug_struct("WarmStartHooks")
+            .field("provider", &name)
+            .finish()
+    }
+}
+
+impl WarmStartHooks {
+    /// Hooks around `provider` with the default [`HookSettings`].
+    pub fn new(provider: Box<dyn WarmStart>) -> Self {
+        Self::with_settings(provider, HookSettings::default())
+    }
+
+    /// Hooks around `provider` with `settings`.
+    pub fn with_settings(provider: Box<dyn WarmStart>, settings: HookSettings) -> Self {
+        Self {
+            state: Mutex::new(State {
+                provider,
+                settings,
+                frame: None,
+                step: 0,
+                pending: Vec::new(),
+                stats: StepStats::default(),
+                error: None,
+                unbegun: 0,
+            }),
+        }
+    }
+
+    fn lock(&self) -> Result<MutexGuard<'_, State>, AdapterError> {
+        self.state.lock().map_err(|_| AdapterError::Poisoned)
+    }
+
+    /// The provider's name.
+    pub fn provider_name(&self) -> String {
+        self.lock()
+            .map(|s| s.provider.name().to_string())
+            .unwrap_or_else(|_| "<poisoned>".into())
+    }
+
+    /// The provider's [`WarmStart::diagnostics`].
+    pub fn diagnostics(&self) -> Vec<(String, Real)> {
+        self.lock()
+            .map(|s| s.provider.diagnostics())
+            .unwrap_or_default()
+    }
+
+    /// Prepares a step: `dt` (s), substeps and `warmstart_coefficient` from `params`, the
+    /// world's `gravity` (m/s²). Before the first step (or after [`Self::reset`]) it calls the
+    /// provider's [`WarmStart::reset`].
+    pub fn begin_step(
+        &self,
+        params: &IntegrationParameters,
+        gravity: Vector,
+    ) -> Result<(), AdapterError> {
+        let mut state = self.lock()?;
+        if state.step == 0 {
+            state.provider.reset();
+        }
+        let passes = substeps(params.num_solver_iterations)
+            * params.num_internal_pgs_iterations.max(1) as u32;
+        state.frame = Some(Frame {
+            dt: Real::from(params.dt),
+            gravity,
+            substeps: substeps(params.num_solver_iterations),
+            coefficient: Real::from(params.warmstart_coefficient),
+            passes,
+        });
+        state.pending.clear();
+        state.stats = StepStats::default();
+        state.error = None;
+        state.unbegun = 0;
+        Ok(())
+    }
+
+    /// Forgets the carried impulses and restarts the step count: a new world begins.
+    pub fn reset(&self) -> Result<(), AdapterError> {
+        let mut state = self.lock()?;
+        state.step = 0;
+        state.frame = None;
+        Ok(())
+    }
+
+    /// Ends a step: reads the solved impulses of every manifold the provider warm-started from
+    /// `narrow_phase`, in deepcontact's per-step units ([`crate::units`]), hands them to
+    /// [`WarmStart::observe`] in (pair, sub-shape) order, and keeps rapier's carried impulses
+    /// by [`PointKey`] for the next step. Returns the step's counts, or the first error under
+    /// [`OnFailure::Error`] (or a structural one, whatever the policy).
+    pub fn finish_step(&self, narrow_phase: &NarrowPhase) -> Result<StepStats, AdapterError> {
+        let mut guard = self.lock()?;
+        let state = &mut *guard;
+        let frame = state.frame.take();
+        let mut pending = std::mem::take(&mut state.pending);
+        pending.sort_by_key(|p| {
+            (
+                p.collider1.into_raw_parts(),
+                p.collider2.into_raw_parts(),
+                p.subshape1,
+                p.subshape2,
+            )
+        });
+        let mut missing = None;
+        if let Some(frame) = frame {
+            let start = Instant::now();
+            let report = SolveReport {
+                iterations: frame.passes,
+                ..SolveReport::default()
+            };
+            for p in &pending {
+                let manifold = narrow_phase
+                    .contact_pair(p.collider1, p.collider2)
+                    .and_then(|pair| {
+                        pair.manifolds
+                            .iter()
+                            .find(|m| m.subshape1 == p.subshape1 && m.subshape2 == p.subshape2)
+                    });
+                let Some(manifold) = manifold else {
+                    missing.get_or_insert(AdapterError::MissingManifold {
+                        collider1: p.collider1.into_raw_parts().0,
+                        collider2: p.collider2.into_raw_parts().0,
+                        subshape1: p.subshape1,
+                        subshape2: p.subshape2,
+                    });
+                    continue;
+                };
+                let mut solved = Vec::with_capacity(p.contacts.len());
+                for (&c, &w) in p.contacts.iter().zip(&p.written) {
+                    let data = manifold.points.get(c as usize).map(|pt| pt.data);
+                    solved.push(data.map_or(Impulse::ZERO, |d| {
+                        solved_per_step((d.impulse, d.tangent_impulse.x), w)
+                    }));
+                }
+                let used: Vec<Impulse> = p
+                    .written
+                    .iter()
+                    .map(|&(n, t)| {
+                        let s = to_step(n, t, frame.substeps);
+                        Impulse::new(s.normal * frame.coefficient, s.tangent * frame.coefficient)
+                    })
+                    .collect();
+                let ctx = context(&frame, state, &p.problem, &p.carried, p.island);
+                let seen = Observation::new(&used, &solved, p.fell_back, &report);
+                state.provider.observe(&ctx, &seen);
+            }
+            state.stats.provider_seconds += start.elapsed().as_secs_f64();
+        }
+        state.step += 1;
+        let stats = std::mem::take(&mut state.stats);
+        if state.unbegun > 0 {
+            return Err(AdapterError::NotBegun {
+                manifolds: state.unbegun,
+            });
+        }
+        if let Some(e) = missing {
+            return Err(e);
+        }
+        match state.error.take() {
+            Some(e) => Err(e),
+            None => Ok(stats),
+        }
+    }
+
+    /// The warm start of one manifold: see the [module docs](self).
+    fn warm_start_manifold(
+        &self,
+        state: &mut State,
+        frame: Frame,
+        c: &mut ContactModificationContext<'_>,
+    ) {
+        let start = Instant::now();
+        let (c1, c2) = (c.collider1, c.collider2);
+        let (s1, s2) = (c.manifold.subshape1, c.manifold.subshape2);
+        let island = state.pending.len();
+        let mut problem = ContactProblem::new();
+        let a = problem.add_body(body(c.bodies, c.colliders, c.rigid_body1, c1, &frame));
+        let b = problem.add_body(body(c.bodies, c.colliders, c.rigid_body2, c2, &frame));
+        let normal = Vector::new(Real::from(c.normal.x), Real::from(c.normal.y));
+        let mut contacts = Vec::with_capacity(c.solver_contacts.len());
+        let mut carried = Vec::with_capacity(c.solver_contacts.len());
+        let mut built = Ok(());
+        for (i, sc) in c.solver_contacts.iter().enumerate() {
+            let index = sc.contact_id[0];
+            let Some(tracked) = c.manifold.points.get(index as usize) else {
+                continue;
+            };
+            let key = PointKey {
+                collider1: c1.into_raw_parts(),
+                collider2: c2.into_raw_parts(),
+                subshape1: s1,
+                subshape2: s2,
+                fid1: tracked.fid1.0,
+                fid2: tracked.fid2.0,
+            };
+            // deepcontact manifolds hold at most 2 points (rapier's 2D ones too).
+            if i % 2 == 0 {
+                problem.begin_manifold();
+            }
+            let desc = PointDesc::new(
+                a,
+                b,
+                Vector::new(Real::from(sc.point.x), Real::from(sc.point.y)),
+                normal,
+            )
+            .id(key.contact_id())
+            .separation(Real::from(sc.dist))
+            .friction(Real::from(sc.friction))
+            .restitution(Real::from(sc.restitution), 1.0);
+            if let Err(e) = problem.add_point(&desc) {
+                built = Err(e);
+                break;
+            }
+            contacts.push(index);
+            // rapier's own carried value: a point that carried nothing is new to deepcontact.
+            let (wn, wt) = (sc.warmstart_impulse, sc.warmstart_tangent_impulse.x);
+            let new = sc.is_new != 0.0 && wn == 0.0 && wt == 0.0;
+            carried.push((!new).then(|| to_step(wn, wt, frame.substeps)));
+        }
+        let n = problem.len();
+        let own: Vec<(f32, f32)> = c
+            .solver_contacts
+            .iter()
+            .map(|sc| (sc.warmstart_impulse, sc.warmstart_tangent_impulse.x))
+            .collect();
+        let outcome = match built {
+            Err(e) => Err(AdapterError::Problem {
+                collider1: c1.into_raw_parts().0,
+                collider2: c2.into_raw_parts().0,
+                source: e,
+            }),
+            Ok(()) if n != c.solver_contacts.len() => Err(AdapterError::Problem {
+                collider1: c1.into_raw_parts().0,
+                collider2: c2.into_raw_parts().0,
+                source: deepcontact_core::CoreError::InvalidProblem(format!(
+                    "{} solver contacts, {n} manifold points found",
+                    c.solver_contacts.len()
+                )),
+            }),
+            Ok(()) => {
+                let mut ctx = context(&frame, state, &problem, &carried, island);
+                ctx.island_count = island + 1;
+                let mut out = vec![Impulse::ZERO; n];
+                let result = state
+                    .provider
+                    .warm_start(&ctx, &mut out)
+                    .and_then(|()| check_output(&out, n));
+                state.stats.provider_passes += u64::from(state.provider.passes_spent());
+                result
+                    .map(|()| out)
+                    .map_err(|source| AdapterError::Provider {
+                        provider: state.provider.name().to_string(),
+                        step: state.step,
+                        collider1: c1.into_raw_parts().0,
+                        collider2: c2.into_raw_parts().0,
+                        source,
+                    })
+            }
+        };
+        let (written, fell_back) = match outcome {
+            Ok(out) => (
+                out.iter().map(|&s| to_substep(s, frame.substeps)).collect(),
+                false,
+            ),
+            Err(e) => {
+                let policy = state.settings.on_failure;
+                if policy == OnFailure::Error && state.error.is_none() {
+                    state.error = Some(e);
+                }
+                let written = if policy == OnFailure::Zero {
+                    vec![(0.0, 0.0); own.len()]
+                } else {
+                    own
+                };
+                (written, true)
+            }
+        };
+        for (sc, &(wn, wt)) in c.solver_contacts.iter_mut().zip(&written) {
+            sc.warmstart_impulse = wn;
+            sc.warmstart_tangent_impulse.x = wt;
+        }
+        state.stats.manifolds += 1;
+        state.stats.points += written.len();
+        state.stats.fallbacks += usize::from(fell_back);
+        if fell_back && contacts.len() != written.len() {
+            // The problem could not be built: nothing to observe for this manifold.
+            state.stats.provider_seconds += start.elapsed().as_secs_f64();
+            return;
+        }
+        state.pending.push(Pending {
+            collider1: c1,
+            collider2: c2,
+            subshape1: s1,
+            subshape2: s2,
+            island,
+            contacts,
+            problem,
+            carried,
+            written,
+            fell_back,
+        });
+        state.stats.provider_seconds += start.elapsed().as_secs_f64();
+    }
+}
+
+/// The provider's context for one manifold's problem.
+fn context<'a>(
+    frame: &Frame,
+    state: &State,
+    problem: &'a ContactProblem,
+    carried: &'a [Option<Impulse>],
+    island: usize,
+) -> WarmStartContext<'a> {
+    let mut ctx =
+        WarmStartContext::new(problem, carried, state.step, frame.dt).with_gravity(frame.gravity);
+    if let Some(budget) = state.settings.pass_budget {
+        ctx = ctx.with_pass_budget(budget);
+    }
+    ctx.island = island;
+    ctx.island_count = island + 1;
+    ctx
+}
+
+/// A manifold's body as the solver sees it: dynamic bodies with their effective inverse mass
+/// and world inverse inertia and this step's gravity already in the velocity (deepcontact's
+/// problems are built after gravity; rapier adds it inside the solver, a substep at a time);
+/// kinematic ones immovable with their velocity; static bodies and body-less colliders
+/// immovable at rest.
+fn body(
+    bodies: &RigidBodySet,
+    colliders: &ColliderSet,
+    handle: Option<RigidBodyHandle>,
+    collider: ColliderHandle,
+    frame: &Frame,
+) -> ProblemBody {
+    let v = |v: rapier2d::math::Vector| Vector::new(Real::from(v.x), Real::from(v.y));
+    let Some(rb) = handle.and_then(|h| bodies.get(h)) else {
+        let at = colliders
+            .get(collider)
+            .map_or(Vector::zeros(), |co| v(co.translation()));
+        return ProblemBody::fixed(at);
+    };
+    let mut out = ProblemBody::fixed(v(rb.center_of_mass()));
+    out.angle = Real::from(rb.rotation().angle());
+    if rb.is_dynamic() {
+        let props = rb.mass_properties();
+        out.linear_velocity =
+            v(rb.linvel()) + frame.gravity * (Real::from(rb.gravity_scale()) * frame.dt);
+        out.angular_velocity = Real::from(rb.angvel());
+        out.inv_mass = Real::from(props.effective_inv_mass.x);
+        out.inv_inertia = Real::from(props.effective_world_inv_inertia);
+    } else if rb.is_kinematic() {
+        out.linear_velocity = v(rb.linvel());
+        out.angular_velocity = Real::from(rb.angvel());
+    }
+    out
+}
+
+impl PhysicsHooks for WarmStartHooks {
+    fn modify_solver_contacts(&self, context: &mut ContactModificationContext<'_>) {
+        if context.solver_contacts.is_empty() {
+            return;
+        }
+        // A poisoned lock (the provider panicked earlier) keeps rapier's own warm starts;
+        // `finish_step` reports it.
+        let Ok(mut state) = self.state.lock() else {
+            return;
+        };
+        let Some(frame) = state.frame else {
+            state.unbegun += 1;
+            return;
+        };
+        self.warm_start_manifold(&mut state, frame, context);
+    }
+}
