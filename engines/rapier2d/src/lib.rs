@@ -14,6 +14,27 @@
 //! and `warmstart_tangent_impulse`, so a hook can no longer set a warm start. Only the first
 //! substep's start is the provider's: the later substeps of a step start from their
 //! predecessor, as in native rapier.
+//!
+//! ```
+//! use deepcontact_rapier2d::{RapierWorld, WarmStartHooks};
+//! use rapier2d::prelude::*;
+//!
+//! let registry = deepcontact_experiments::full_registry(); // without tract: no CNNs
+//! let hooks = WarmStartHooks::new(registry.build_provider("sor")?);
+//! // Your own world: every collider asks for the hook.
+//! let mut world = RapierWorld::new();
+//! let ground = world.bodies.insert(RigidBodyBuilder::fixed());
+//! let collider = ColliderBuilder::cuboid(5.0, 0.5).active_hooks(ActiveHooks::MODIFY_SOLVER_CONTACTS);
+//! world.colliders.insert_with_parent(collider, ground, &mut world.bodies);
+//! // ... or a deepcontact scene:
+//! let mut world = RapierWorld::from_scene(&registry.build_scene("pyramid:base=4", 0)?)?;
+//! for _ in 0..60 {
+//!     // begin_step, PhysicsPipeline::step with the hooks, finish_step (observe, counts):
+//!     let stats = world.step(&hooks)?;
+//!     assert_eq!(stats.fallbacks, 0);
+//! }
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 #![warn(missing_docs)]
 #![forbid(unsafe_code)]
 
