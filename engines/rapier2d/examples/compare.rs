@@ -10,11 +10,12 @@
 //! A budget `SxK` is `S` substeps (`num_solver_iterations`) of `K` PGS passes
 //! (`num_internal_pgs_iterations`); rapier's default is `4x1`. `native` is rapier2d without
 //! hooks; every other name is a deepcontact provider from `full_registry()` driving rapier's
-//! warm starts through `WarmStartHooks`. dt is deepcontact's 0.01 s.
+//! warm starts through `WarmStartHooks`, one problem per manifold, or one per island with the
+//! suffix `@island` (`sor@island`). dt is deepcontact's 0.01 s.
 
 use std::time::Instant;
 
-use deepcontact_rapier2d::{RapierWorld, WarmStartHooks};
+use deepcontact_rapier2d::{Grouping, HookSettings, RapierWorld, WarmStartHooks};
 
 /// Kinetic energy under which a pile counts as at rest (J).
 const REST: f64 = 0.01;
@@ -39,9 +40,17 @@ fn parse() -> Result<Args, String> {
         ]
         .map(String::from)
         .to_vec(),
-        providers: ["native", "none", "builtin", "sor", "learned-sor"]
-            .map(String::from)
-            .to_vec(),
+        providers: [
+            "native",
+            "none",
+            "builtin",
+            "sor",
+            "learned-sor",
+            "sor@island",
+            "learned-sor@island",
+        ]
+        .map(String::from)
+        .to_vec(),
         budgets: vec![(1, 1), (1, 2), (1, 4), (1, 8), (4, 1)],
     };
     let mut it = std::env::args().skip(1);
@@ -120,7 +129,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     let hooks = if provider == "native" {
                         None
                     } else {
-                        Some(WarmStartHooks::new(registry.build_provider(provider)?))
+                        let (spec, grouping) = match provider.strip_suffix("@island") {
+                            Some(spec) => (spec, Grouping::Island),
+                            None => (provider.as_str(), Grouping::Manifold),
+                        };
+                        let settings = HookSettings {
+                            grouping,
+                            ..HookSettings::default()
+                        };
+                        Some(WarmStartHooks::with_settings(
+                            registry.build_provider(spec)?,
+                            settings,
+                        ))
                     };
                     let (mut pen_sum, mut nve_sum, mut ke, mut last_moving) = (0.0, 0.0, 0.0, 0);
                     let (mut seconds, mut provider_s) = (0.0, 0.0);

@@ -30,6 +30,7 @@
 //!
 //! **Units and signs:** see [`crate::units`].
 
+use std::collections::HashMap;
 use std::sync::{Mutex, MutexGuard};
 use std::time::Instant;
 
@@ -57,6 +58,19 @@ pub enum OnFailure {
     Error,
 }
 
+/// How the adapter groups rapier's contacts into deepcontact problems.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Grouping {
+    /// One problem per rapier manifold, built inside the hook from what rapier hands it
+    /// (default: exact, the simplest; sweeping providers see one pair at a time).
+    #[default]
+    Manifold,
+    /// One problem per island, planned before the step by [`WarmStartHooks::plan_islands`]
+    /// from last step's manifolds moved to this step's poses ([`crate::island`]); manifolds
+    /// the plan does not cover (new pairs, renamed points) take the per-manifold path.
+    Island,
+}
+
 /// Settings of [`WarmStartHooks`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct HookSettings {
@@ -65,6 +79,8 @@ pub struct HookSettings {
     /// [`WarmStartContext::pass_budget`] given to the provider per manifold (default `None`:
     /// the provider sweeps as its own settings say).
     pub pass_budget: Option<u32>,
+    /// How contacts are grouped into problems (default [`Grouping::Manifold`]).
+    pub grouping: Grouping,
 }
 
 /// What the hooks did during one step.
@@ -74,6 +90,9 @@ pub struct StepStats {
     pub manifolds: usize,
     /// Contact points warm-started.
     pub points: usize,
+    /// Of [`Self::manifolds`], those written from the island plan ([`Grouping::Island`]);
+    /// the others took the per-manifold path.
+    pub planned: usize,
     /// Manifolds whose provider output was rejected (guard or problem error) and replaced.
     pub fallbacks: usize,
     /// Wall time of the provider's `warm_start` and `observe` calls and of building its
@@ -150,6 +169,13 @@ struct State {
     stats: StepStats,
     error: Option<AdapterError>,
     unbegun: usize,
+    /// Under [`Grouping::Island`]: per planned point, the per-substep start to write (`None`:
+    /// keep rapier's own after a fallback).
+    planned: HashMap<PointKey, Option<(f32, f32)>>,
+    /// Per planned point the hook saw, what the solver contact held after the hook.
+    written: HashMap<PointKey, (f32, f32)>,
+    /// The planned islands, kept for `observe`.
+    islands: Vec<(crate::island::IslandProblem, bool)>,
 }
 
 /// rapier2d `PhysicsHooks` driving rapier's contact warm starts from a deepcontact provider.
@@ -192,6 +218,9 @@ impl WarmStartHooks {
                 stats: StepStats::default(),
                 error: None,
                 unbegun: 0,
+                planned: HashMap::new(),
+                written: HashMap::new(),
+                islands: Vec::new(),
             }),
         }
     }
@@ -239,7 +268,117 @@ impl WarmStartHooks {
         state.stats = StepStats::default();
         state.error = None;
         state.unbegun = 0;
+        state.planned.clear();
+        state.written.clear();
+        state.islands.clear();
         Ok(())
+    }
+
+    /// Under [`Grouping::Island`], between [`Self::begin_step`] and the pipeline step: builds
+    /// the island problems of the coming step from `narrow_phase` (last step's manifolds) at the
+    /// poses of `bodies` and `colliders`, and asks the provider for each island's start (see
+    /// [`crate::island`]). A failing island follows [`HookSettings::on_failure`] and counts as
+    /// one fallback. Does nothing under [`Grouping::Manifold`].
+    pub fn plan_islands(
+        &self,
+        bodies: &RigidBodySet,
+        colliders: &ColliderSet,
+        narrow_phase: &NarrowPhase,
+        params: &IntegrationParameters,
+    ) -> Result<(), AdapterError> {
+        let mut guard = self.lock()?;
+        let state = &mut *guard;
+        if state.settings.grouping != Grouping::Island {
+            return Ok(());
+        }
+        let Some(frame) = state.frame else {
+            return Err(AdapterError::NotBegun { manifolds: 0 });
+        };
+        let start = Instant::now();
+        let islands = crate::island::plan(
+            bodies,
+            colliders,
+            narrow_phase,
+            Real::from(params.prediction_distance()),
+            frame.dt,
+            &|h, c| body(bodies, colliders, h, c, &frame),
+            &|n, t| to_step(n, t, frame.substeps),
+        );
+        let count = islands.len();
+        for (i, island) in islands.into_iter().enumerate() {
+            let n = island.problem.len();
+            let mut ctx = context(&frame, state, &island.problem, &island.carried, i);
+            ctx.island_count = count;
+            let mut out = vec![Impulse::ZERO; n];
+            let result = state
+                .provider
+                .warm_start(&ctx, &mut out)
+                .and_then(|()| check_output(&out, n));
+            state.stats.provider_passes += u64::from(state.provider.passes_spent());
+            let fell_back = result.is_err();
+            if let Err(source) = result {
+                if state.settings.on_failure == OnFailure::Error && state.error.is_none() {
+                    state.error = Some(AdapterError::Provider {
+                        provider: state.provider.name().to_string(),
+                        step: state.step,
+                        collider1: island.keys.first().map_or(0, |k| k.collider1.0),
+                        collider2: island.keys.first().map_or(0, |k| k.collider2.0),
+                        source,
+                    });
+                }
+                state.stats.fallbacks += 1;
+            }
+            for (k, key) in island.keys.iter().enumerate() {
+                let value = match (fell_back, state.settings.on_failure) {
+                    (false, _) => Some(to_substep(out[k], frame.substeps)),
+                    (true, OnFailure::Zero) => Some((0.0, 0.0)),
+                    (true, _) => None,
+                };
+                state.planned.insert(*key, value);
+            }
+            state.islands.push((island, fell_back));
+        }
+        state.stats.provider_seconds += start.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    /// Writes the planned starts of a manifold whose points were all planned; false (nothing
+    /// written) if one was not.
+    fn write_planned(state: &mut State, c: &mut ContactModificationContext<'_>) -> bool {
+        let (c1, c2) = (c.collider1.into_raw_parts(), c.collider2.into_raw_parts());
+        let (s1, s2) = (c.manifold.subshape1, c.manifold.subshape2);
+        let key = |index: u32| {
+            c.manifold.points.get(index as usize).map(|p| PointKey {
+                collider1: c1,
+                collider2: c2,
+                subshape1: s1,
+                subshape2: s2,
+                fid1: p.fid1.0,
+                fid2: p.fid2.0,
+            })
+        };
+        let keys: Option<Vec<PointKey>> = c
+            .solver_contacts
+            .iter()
+            .map(|sc| key(sc.contact_id[0]))
+            .collect();
+        let Some(keys) = keys else { return false };
+        if !keys.iter().all(|k| state.planned.contains_key(k)) {
+            return false;
+        }
+        for (sc, k) in c.solver_contacts.iter_mut().zip(&keys) {
+            if let Some(Some((n, t))) = state.planned.get(k) {
+                sc.warmstart_impulse = *n;
+                sc.warmstart_tangent_impulse.x = *t;
+            }
+            state
+                .written
+                .insert(*k, (sc.warmstart_impulse, sc.warmstart_tangent_impulse.x));
+        }
+        state.stats.manifolds += 1;
+        state.stats.planned += 1;
+        state.stats.points += keys.len();
+        true
     }
 
     /// Forgets the carried impulses and restarts the step count: a new world begins.
@@ -311,8 +450,52 @@ impl WarmStartHooks {
                 let seen = Observation::new(&used, &solved, p.fell_back, &report);
                 state.provider.observe(&ctx, &seen);
             }
+            let islands = std::mem::take(&mut state.islands);
+            let count = islands.len();
+            for (i, (island, fell_back)) in islands.iter().enumerate() {
+                let mut used = Vec::with_capacity(island.keys.len());
+                let mut solved = Vec::with_capacity(island.keys.len());
+                for key in &island.keys {
+                    let Some(&w) = state.written.get(key) else {
+                        // Not a solver contact this step after all: no start, no impulse.
+                        used.push(Impulse::ZERO);
+                        solved.push(Impulse::ZERO);
+                        continue;
+                    };
+                    let s = to_step(w.0, w.1, frame.substeps);
+                    used.push(Impulse::new(
+                        s.normal * frame.coefficient,
+                        s.tangent * frame.coefficient,
+                    ));
+                    let data = narrow_phase
+                        .contact_pair(
+                            ColliderHandle::from_raw_parts(key.collider1.0, key.collider1.1),
+                            ColliderHandle::from_raw_parts(key.collider2.0, key.collider2.1),
+                        )
+                        .and_then(|pair| {
+                            pair.manifolds.iter().find(|m| {
+                                m.subshape1 == key.subshape1 && m.subshape2 == key.subshape2
+                            })
+                        })
+                        .and_then(|m| {
+                            m.points
+                                .iter()
+                                .find(|p| p.fid1.0 == key.fid1 && p.fid2.0 == key.fid2)
+                        })
+                        .map(|p| p.data);
+                    solved.push(data.map_or(Impulse::ZERO, |d| {
+                        solved_per_step((d.impulse, d.tangent_impulse.x), w)
+                    }));
+                }
+                let mut ctx = context(&frame, state, &island.problem, &island.carried, i);
+                ctx.island_count = count;
+                let seen = Observation::new(&used, &solved, *fell_back, &report);
+                state.provider.observe(&ctx, &seen);
+            }
             state.stats.provider_seconds += start.elapsed().as_secs_f64();
         }
+        state.planned.clear();
+        state.written.clear();
         state.step += 1;
         let stats = std::mem::take(&mut state.stats);
         if state.unbegun > 0 {
@@ -537,6 +720,9 @@ impl PhysicsHooks for WarmStartHooks {
             state.unbegun += 1;
             return;
         };
+        if state.settings.grouping == Grouping::Island && Self::write_planned(&mut state, context) {
+            return;
+        }
         self.warm_start_manifold(&mut state, frame, context);
     }
 }

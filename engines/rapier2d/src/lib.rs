@@ -40,9 +40,10 @@
 
 pub mod error;
 pub mod hooks;
+pub mod island;
 pub mod units;
 pub mod world;
 
 pub use error::AdapterError;
-pub use hooks::{HookSettings, OnFailure, PointKey, StepStats, WarmStartHooks};
+pub use hooks::{Grouping, HookSettings, OnFailure, PointKey, StepStats, WarmStartHooks};
 pub use world::{RapierWorld, StepMeasures};

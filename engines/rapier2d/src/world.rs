@@ -166,10 +166,17 @@ impl RapierWorld {
     }
 
     /// One step whose warm starts come from `hooks`' provider: [`WarmStartHooks::begin_step`],
-    /// the pipeline step, [`WarmStartHooks::finish_step`].
+    /// [`WarmStartHooks::plan_islands`] (a no-op unless the hooks group by island), the pipeline
+    /// step, [`WarmStartHooks::finish_step`].
     pub fn step(&mut self, hooks: &WarmStartHooks) -> Result<StepStats, AdapterError> {
         let g = Vector::new(Real::from(self.gravity.x), Real::from(self.gravity.y));
         hooks.begin_step(&self.params, g)?;
+        hooks.plan_islands(
+            &self.bodies,
+            &self.colliders,
+            &self.narrow_phase,
+            &self.params,
+        )?;
         self.pipeline.step(
             self.gravity,
             &self.params,

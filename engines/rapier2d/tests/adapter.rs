@@ -9,7 +9,9 @@ use deepcontact_core::{
     BodyDesc, CarriedWarmStart, Impulse, Observation, ShapeDesc, Vector, WarmStart,
     WarmStartContext, WarmStartError, ZeroWarmStart,
 };
-use deepcontact_rapier2d::{AdapterError, HookSettings, OnFailure, RapierWorld, WarmStartHooks};
+use deepcontact_rapier2d::{
+    AdapterError, Grouping, HookSettings, OnFailure, RapierWorld, WarmStartHooks,
+};
 
 /// 30 polygons and circles dropped into the pile's box: rolling, sliding, new and lost
 /// contacts every step.
@@ -368,4 +370,93 @@ fn hooks_without_begin_step_keep_rapiers_warm_start_and_say_so() {
         assert_eq!(native.pose_bits(), w.pose_bits());
     }
     assert!(saw);
+}
+
+#[test]
+fn builtin_grouped_by_island_reproduces_native_rapier_bit_for_bit() {
+    let scene = pile();
+    let settings = HookSettings {
+        grouping: Grouping::Island,
+        ..HookSettings::default()
+    };
+    for budget in BUDGETS {
+        let mut native = world(&scene, budget);
+        let mut hooked = world(&scene, budget);
+        let hooks = WarmStartHooks::with_settings(Box::new(CarriedWarmStart), settings);
+        let (mut manifolds, mut planned) = (0, 0);
+        for step in 0..300 {
+            native.step_native();
+            let stats = hooked.step(&hooks).unwrap();
+            assert_eq!(stats.fallbacks, 0, "step {step}");
+            manifolds += stats.manifolds;
+            planned += stats.planned;
+            assert_eq!(
+                native.pose_bits(),
+                hooked.pose_bits(),
+                "budget {budget:?}, step {step}"
+            );
+        }
+        // New contacts (the pile's landing) take the per-manifold path; the rest is planned.
+        assert!(
+            planned * 10 > manifolds * 9,
+            "{planned} of {manifolds} planned"
+        );
+    }
+}
+
+/// Largest problem a provider was handed: (bodies, points).
+struct Largest(Arc<Mutex<(usize, usize)>>);
+
+impl WarmStart for Largest {
+    fn name(&self) -> &str {
+        "largest"
+    }
+    fn warm_start(
+        &mut self,
+        ctx: &WarmStartContext<'_>,
+        out: &mut [Impulse],
+    ) -> Result<(), WarmStartError> {
+        let mut l = self.0.lock().unwrap();
+        *l = (*l).max((ctx.problem.bodies.len(), ctx.problem.len()));
+        CarriedWarmStart.warm_start(ctx, out)
+    }
+}
+
+#[test]
+fn island_grouping_hands_the_provider_a_whole_stack() {
+    let mut bodies = vec![BodyDesc::fixed(
+        ShapeDesc::Cuboid {
+            half_width: 5.0,
+            half_height: 0.5,
+        },
+        Vector::new(0.0, -0.5),
+    )];
+    for i in 0..3 {
+        bodies.push(BodyDesc::dynamic(
+            ShapeDesc::Cuboid {
+                half_width: 0.5,
+                half_height: 0.5,
+            },
+            Vector::new(0.0, 0.5 + i as f64),
+        ));
+    }
+    let scene = Scene {
+        name: "stack".into(),
+        bodies,
+        min: Vector::new(-5.0, -1.0),
+        max: Vector::new(5.0, 4.0),
+    };
+    for (grouping, expected) in [(Grouping::Manifold, (2, 2)), (Grouping::Island, (4, 6))] {
+        let mut w = world(&scene, (4, 1));
+        let largest = Arc::new(Mutex::new((0, 0)));
+        let settings = HookSettings {
+            grouping,
+            ..HookSettings::default()
+        };
+        let hooks = WarmStartHooks::with_settings(Box::new(Largest(largest.clone())), settings);
+        for _ in 0..30 {
+            w.step(&hooks).unwrap();
+        }
+        assert_eq!(*largest.lock().unwrap(), expected, "{grouping:?}");
+    }
 }
