@@ -11,7 +11,9 @@
 //! (`num_internal_pgs_iterations`); rapier's default is `4x1`. `native` is rapier2d without
 //! hooks; every other name is a deepcontact provider from `full_registry()` driving rapier's
 //! warm starts through `WarmStartHooks`, one problem per manifold, or one per island with the
-//! suffix `@island` (`sor@island`). dt is deepcontact's 0.01 s.
+//! suffix `@island` (`sor@island`); a further `+passes` caps the provider's own sweeps at the
+//! solver's passes per step, `S × K` (`WarmStartContext::pass_budget`; without it `sor` sweeps
+//! until its tolerance, up to 300). dt is deepcontact's 0.01 s.
 
 use std::time::Instant;
 
@@ -48,6 +50,8 @@ fn parse() -> Result<Args, String> {
             "learned-sor",
             "sor@island",
             "learned-sor@island",
+            "sor@island+passes",
+            "learned-sor@island+passes",
         ]
         .map(String::from)
         .to_vec(),
@@ -129,12 +133,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     let hooks = if provider == "native" {
                         None
                     } else {
-                        let (spec, grouping) = match provider.strip_suffix("@island") {
+                        let (spec, capped) = match provider.strip_suffix("+passes") {
+                            Some(spec) => (spec, true),
+                            None => (provider.as_str(), false),
+                        };
+                        let (spec, grouping) = match spec.strip_suffix("@island") {
                             Some(spec) => (spec, Grouping::Island),
-                            None => (provider.as_str(), Grouping::Manifold),
+                            None => (spec, Grouping::Manifold),
                         };
                         let settings = HookSettings {
                             grouping,
+                            pass_budget: capped.then_some((substeps * passes) as u32),
                             ..HookSettings::default()
                         };
                         Some(WarmStartHooks::with_settings(
