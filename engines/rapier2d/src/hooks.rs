@@ -160,6 +160,24 @@ struct Pending {
     fell_back: bool,
 }
 
+impl Pending {
+    /// An empty entry, to be filled by a hook call.
+    fn empty() -> Self {
+        Self {
+            collider1: ColliderHandle::invalid(),
+            collider2: ColliderHandle::invalid(),
+            subshape1: 0,
+            subshape2: 0,
+            island: 0,
+            contacts: Vec::new(),
+            problem: ContactProblem::new(),
+            carried: Vec::new(),
+            written: Vec::new(),
+            fell_back: false,
+        }
+    }
+}
+
 struct State {
     provider: Box<dyn WarmStart>,
     settings: HookSettings,
@@ -174,6 +192,11 @@ struct State {
     planned: HashMap<PointKey, Option<(f32, f32)>>,
     /// Per planned point the hook saw, what the solver contact held after the hook.
     written: HashMap<PointKey, (f32, f32)>,
+    /// Entries of earlier steps, emptied and reused: a hook call then allocates nothing once
+    /// the step's manifold count has been seen (allocation was most of the hooks' cost).
+    spare: Vec<Pending>,
+    /// The provider's output buffer, reused.
+    out: Vec<Impulse>,
     /// The planned islands, kept for `observe`.
     islands: Vec<(crate::island::IslandProblem, bool)>,
 }
@@ -221,6 +244,8 @@ impl WarmStartHooks {
                 planned: HashMap::new(),
                 written: HashMap::new(),
                 islands: Vec::new(),
+                spare: Vec::new(),
+                out: Vec::new(),
             }),
         }
     }
@@ -494,6 +519,7 @@ impl WarmStartHooks {
             }
             state.stats.provider_seconds += start.elapsed().as_secs_f64();
         }
+        state.spare.append(&mut pending);
         state.planned.clear();
         state.written.clear();
         state.step += 1;
@@ -523,12 +549,21 @@ impl WarmStartHooks {
         let (c1, c2) = (c.collider1, c.collider2);
         let (s1, s2) = (c.manifold.subshape1, c.manifold.subshape2);
         let island = state.pending.len();
-        let mut problem = ContactProblem::new();
+        let mut slot = state.spare.pop().unwrap_or_else(Pending::empty);
+        let Pending {
+            problem,
+            contacts,
+            carried,
+            written,
+            ..
+        } = &mut slot;
+        problem.clear();
+        contacts.clear();
+        carried.clear();
+        written.clear();
         let a = problem.add_body(body(c.bodies, c.colliders, c.rigid_body1, c1, &frame));
         let b = problem.add_body(body(c.bodies, c.colliders, c.rigid_body2, c2, &frame));
         let normal = Vector::new(Real::from(c.normal.x), Real::from(c.normal.y));
-        let mut contacts = Vec::with_capacity(c.solver_contacts.len());
-        let mut carried = Vec::with_capacity(c.solver_contacts.len());
         let mut built = Ok(());
         for (i, sc) in c.solver_contacts.iter().enumerate() {
             let index = sc.contact_id[0];
@@ -568,11 +603,7 @@ impl WarmStartHooks {
             carried.push((!new).then(|| to_step(wn, wt, frame.substeps)));
         }
         let n = problem.len();
-        let own: Vec<(f32, f32)> = c
-            .solver_contacts
-            .iter()
-            .map(|sc| (sc.warmstart_impulse, sc.warmstart_tangent_impulse.x))
-            .collect();
+        let mut out = std::mem::take(&mut state.out);
         let outcome = match built {
             Err(e) => Err(AdapterError::Problem {
                 collider1: c1.into_raw_parts().0,
@@ -588,44 +619,47 @@ impl WarmStartHooks {
                 )),
             }),
             Ok(()) => {
-                let mut ctx = context(&frame, state, &problem, &carried, island);
+                let mut ctx = context(&frame, state, problem, carried, island);
                 ctx.island_count = island + 1;
-                let mut out = vec![Impulse::ZERO; n];
+                out.clear();
+                out.resize(n, Impulse::ZERO);
                 let result = state
                     .provider
                     .warm_start(&ctx, &mut out)
                     .and_then(|()| check_output(&out, n));
                 state.stats.provider_passes += u64::from(state.provider.passes_spent());
-                result
-                    .map(|()| out)
-                    .map_err(|source| AdapterError::Provider {
-                        provider: state.provider.name().to_string(),
-                        step: state.step,
-                        collider1: c1.into_raw_parts().0,
-                        collider2: c2.into_raw_parts().0,
-                        source,
-                    })
+                result.map_err(|source| AdapterError::Provider {
+                    provider: state.provider.name().to_string(),
+                    step: state.step,
+                    collider1: c1.into_raw_parts().0,
+                    collider2: c2.into_raw_parts().0,
+                    source,
+                })
             }
         };
-        let (written, fell_back) = match outcome {
-            Ok(out) => (
-                out.iter().map(|&s| to_substep(s, frame.substeps)).collect(),
-                false,
-            ),
+        let fell_back = match outcome {
+            Ok(()) => {
+                written.extend(out.iter().map(|&s| to_substep(s, frame.substeps)));
+                false
+            }
             Err(e) => {
                 let policy = state.settings.on_failure;
                 if policy == OnFailure::Error && state.error.is_none() {
                     state.error = Some(e);
                 }
-                let written = if policy == OnFailure::Zero {
-                    vec![(0.0, 0.0); own.len()]
-                } else {
-                    own
-                };
-                (written, true)
+                // rapier's own carried values, or zeros.
+                written.extend(c.solver_contacts.iter().map(|sc| {
+                    if policy == OnFailure::Zero {
+                        (0.0, 0.0)
+                    } else {
+                        (sc.warmstart_impulse, sc.warmstart_tangent_impulse.x)
+                    }
+                }));
+                true
             }
         };
-        for (sc, &(wn, wt)) in c.solver_contacts.iter_mut().zip(&written) {
+        state.out = out;
+        for (sc, &(wn, wt)) in c.solver_contacts.iter_mut().zip(written.iter()) {
             sc.warmstart_impulse = wn;
             sc.warmstart_tangent_impulse.x = wt;
         }
@@ -634,21 +668,17 @@ impl WarmStartHooks {
         state.stats.fallbacks += usize::from(fell_back);
         if fell_back && contacts.len() != written.len() {
             // The problem could not be built: nothing to observe for this manifold.
+            state.spare.push(slot);
             state.stats.provider_seconds += start.elapsed().as_secs_f64();
             return;
         }
-        state.pending.push(Pending {
-            collider1: c1,
-            collider2: c2,
-            subshape1: s1,
-            subshape2: s2,
-            island,
-            contacts,
-            problem,
-            carried,
-            written,
-            fell_back,
-        });
+        slot.collider1 = c1;
+        slot.collider2 = c2;
+        slot.subshape1 = s1;
+        slot.subshape2 = s2;
+        slot.island = island;
+        slot.fell_back = fell_back;
+        state.pending.push(slot);
         state.stats.provider_seconds += start.elapsed().as_secs_f64();
     }
 }
