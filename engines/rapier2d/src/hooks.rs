@@ -1,17 +1,17 @@
 //! [`WarmStartHooks`]: rapier2d `PhysicsHooks` that let any deepcontact [`WarmStart`] provider
 //! set rapier's contact warm starts.
 //!
-//! **Grouping.** rapier calls `modify_solver_contacts` once per contact manifold (collider
-//! pair and sub-shape pair) from inside its narrow phase, before islands exist, and the
-//! start must be written during that call. The adapter therefore builds one deepcontact
-//! [`ContactProblem`] per manifold: the two bodies (mass, inertia, velocities with this
-//! step's gravity added, as deepcontact's problems have them) and the manifold's points (at
-//! most 2 in 2D). Providers that read only the carried impulses (`none`, `builtin`,
+//! **Grouping** ([`Grouping`]). rapier calls `modify_solver_contacts` once per contact
+//! manifold (collider pair and sub-shape pair) from inside its narrow phase, before islands
+//! exist, and the start must be written during that call. By default the adapter builds one
+//! deepcontact [`ContactProblem`] per manifold: the two bodies (mass, inertia, velocities with
+//! this step's gravity added, as deepcontact's problems have them) and the manifold's points
+//! (at most 2 in 2D). Providers that read only the carried impulses (`none`, `builtin`,
 //! `extrapolate`, ...) behave exactly as in deepcontact; providers that sweep the problem
-//! (`sor`, `learned-sor`, the `graph` model) see one pair at a time, without the weight of
-//! the bodies resting on it. Island-sized problems would need the whole contact graph before
-//! the first write, which rapier 0.34's hooks do not give (a second narrow phase per step
-//! would).
+//! (`sor`, `learned-sor`, the `graph` model) then see one pair at a time, without the weight
+//! of the bodies resting on it. [`Grouping::Island`] plans island-sized problems before the
+//! step instead ([`WarmStartHooks::plan_islands`], [`crate::island`]) and writes their starts
+//! from the hook.
 //!
 //! **Carried impulses.** rapier carries each point's impulse itself: parry2d's manifold
 //! generators copy a point's data to the new point with the same feature ids, and the
@@ -25,8 +25,10 @@
 //! **Threads.** rapier may call the hook from several threads (its `parallel` feature); the
 //! provider sits behind a [`Mutex`], so calls are serialised, and their order may vary from
 //! run to run under `parallel`: [`WarmStartHooks::finish_step`] calls `observe` in a fixed
-//! (pair, sub-shape) order. `ctx.island` is the manifold's index in call order and
-//! `ctx.island_count` the manifolds seen so far (the total is unknown during the step).
+//! (pair, sub-shape) order, but a provider whose output depends on the call order (a seeded
+//! `random`) is then not reproducible. By manifold, `ctx.island` is the manifold's index in
+//! call order and `ctx.island_count` the manifolds seen so far (the total is unknown during
+//! the step); by island they are the planned island's index and count.
 //!
 //! **Units and signs:** see [`crate::units`].
 
