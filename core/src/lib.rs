@@ -46,6 +46,6 @@ pub use solver::{
 };
 pub use warm_start::{
     CarriedWarmStart, GuardPolicy, Observation, WarmStart, WarmStartContext, WarmStartError,
-    ZeroWarmStart,
+    ZeroWarmStart, check_output,
 };
 pub use world::{MAX_BUDGET, Stage, World, WorldSettings};

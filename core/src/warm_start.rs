@@ -153,6 +153,18 @@ pub enum WarmStartError {
         /// Normal value written.
         normal: Real,
     },
+    /// The context carries a different number of impulses than the problem has points (a
+    /// [`WarmStartContext::new`] given the wrong `carried` slice): the caller's mistake, not
+    /// the provider's.
+    #[error(
+        "the context carries {carried} impulses for {points} contact points (WarmStartContext::new needs one per point)"
+    )]
+    CarriedLength {
+        /// Points of the problem.
+        points: usize,
+        /// Carried impulses in the context.
+        carried: usize,
+    },
     /// The provider produced the wrong number of impulses.
     #[error("provider produced {got} impulses for {expected} contact points")]
     WrongLength {
@@ -328,15 +340,79 @@ impl WarmStart for CarriedWarmStart {
         ctx: &WarmStartContext<'_>,
         out: &mut [Impulse],
     ) -> Result<(), WarmStartError> {
-        if ctx.carried.len() != out.len() {
+        if ctx.carried.len() != ctx.problem.len() {
+            return Err(WarmStartError::CarriedLength {
+                points: ctx.problem.len(),
+                carried: ctx.carried.len(),
+            });
+        }
+        if out.len() != ctx.problem.len() {
             return Err(WarmStartError::WrongLength {
-                expected: out.len(),
-                got: ctx.carried.len(),
+                expected: ctx.problem.len(),
+                got: out.len(),
             });
         }
         for (o, c) in out.iter_mut().zip(ctx.carried_impulses()) {
             *o = c;
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::problem::{PointDesc, ProblemBody};
+
+    /// A ball resting on the ground: one point.
+    fn one_point() -> ContactProblem {
+        let mut p = ContactProblem::new();
+        let ground = p.add_body(ProblemBody::fixed(Vector::new(0.0, -0.5)));
+        let ball = p.add_body(ProblemBody::dynamic(
+            Vector::new(0.0, 0.5),
+            0.0,
+            Vector::zeros(),
+            0.0,
+            1.0,
+            1.0,
+        ));
+        p.begin_manifold();
+        p.add_point(&PointDesc::new(
+            ground,
+            ball,
+            Vector::new(0.0, 0.0),
+            Vector::new(0.0, 1.0),
+        ))
+        .unwrap();
+        p
+    }
+
+    #[test]
+    fn a_context_carrying_the_wrong_count_blames_the_context_not_the_provider() {
+        let problem = one_point();
+        let mut out = [Impulse::ZERO];
+        let ctx = WarmStartContext::new(&problem, &[], 0, 0.01);
+        let err = CarriedWarmStart.warm_start(&ctx, &mut out).unwrap_err();
+        assert_eq!(
+            err,
+            WarmStartError::CarriedLength {
+                points: 1,
+                carried: 0
+            }
+        );
+        assert!(err.to_string().contains("WarmStartContext::new"), "{err}");
+        // The right count, a wrong output buffer: the output's length is named.
+        let carried = [Some(Impulse::new(2.0, 0.5))];
+        let ctx = WarmStartContext::new(&problem, &carried, 0, 0.01);
+        let err = CarriedWarmStart.warm_start(&ctx, &mut []).unwrap_err();
+        assert_eq!(
+            err,
+            WarmStartError::WrongLength {
+                expected: 1,
+                got: 0
+            }
+        );
+        CarriedWarmStart.warm_start(&ctx, &mut out).unwrap();
+        assert_eq!(out, [Impulse::new(2.0, 0.5)]);
     }
 }
