@@ -694,6 +694,9 @@ mod tests {
         solve_bits_on(problem, start, settings, stop, pulp::Arch::new())
     }
 
+    /// Impulses and velocities as bits, and the iterations run; then the L2 residuals as bits.
+    type SolveBits = ((Vec<u64>, Vec<u64>, u32), Vec<u64>);
+
     /// [`solve_bits_with`] with the sweeps compiled for `arch`.
     fn solve_bits_on(
         problem: &ContactProblem,
@@ -701,7 +704,7 @@ mod tests {
         settings: PgsSettings,
         stop: &SolverSettings,
         arch: pulp::Arch,
-    ) -> ((Vec<u64>, Vec<u64>, u32), Vec<u64>) {
+    ) -> SolveBits {
         solve_bits_and_threads(problem, start, settings, stop, arch).0
     }
 
@@ -712,7 +715,7 @@ mod tests {
         settings: PgsSettings,
         stop: &SolverSettings,
         arch: pulp::Arch,
-    ) -> (((Vec<u64>, Vec<u64>, u32), Vec<u64>), usize) {
+    ) -> (SolveBits, usize) {
         let mut solver = PgsSolver::with_settings(settings);
         solver.arch = arch;
         let mut imp = start.to_vec();
