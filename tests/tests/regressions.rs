@@ -1,5 +1,7 @@
 //! Regression tests of the bugs found by fuzzing and property testing (one test per bug,
-//! named after it). The harness is the fuzzers' own (`deepcontact-fuzz-harness`, `fuzz/harness/`).
+//! named after it). A fuzz crash is rebuilt by hand as a valid problem that meets the same
+//! arithmetic: the crash bytes themselves build problems that `ContactProblem::add_point` now
+//! refuses, so they would never reach the solver whose guard the test pins.
 
 use std::path::Path;
 
