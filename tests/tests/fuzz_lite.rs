@@ -1,6 +1,8 @@
 //! "Fuzz-lite": the cargo-fuzz harnesses (`deepcontact-fuzz-harness`, `fuzz/harness/`) run on
-//! stable under proptest, with random bytes and a few hand-written bad inputs, so that every
-//! `cargo test` exercises them. The real fuzzers are described in `fuzz/README.md`.
+//! stable under proptest, with random bytes, inputs written in the `solve_problem` byte grammar
+//! (mostly admissible, so that solved results get checked) and a few hand-written bad inputs,
+//! so that every `cargo test` exercises them. The real fuzzers are described in
+//! `fuzz/README.md`.
 
 use deepcontact_fuzz_harness::{
     Bytes, SolveOutcome, parse_specs, problem_from, scene_file, small_problem, solve_problem,
