@@ -417,13 +417,16 @@ fn every_bad_input_gets_one_clear_line_and_a_non_zero_exit() {
                 .replace('|', "\\|")
         ));
         let ok = !out.status.success()
+            && lines.len() == 1
             && !stderr.contains("panicked")
             && !stderr.contains("stack backtrace")
             && message.contains(c.expect);
         if !ok {
             failures.push(format!(
-                "{}: status {:?}, stderr:\n{stderr}",
-                c.what, out.status
+                "{}: status {:?}, {} lines on stderr:\n{stderr}",
+                c.what,
+                out.status,
+                lines.len()
             ));
         }
     }

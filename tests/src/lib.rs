@@ -52,3 +52,15 @@ pub fn state_bits(world: &World) -> Vec<[u64; 3]> {
         })
         .collect()
 }
+
+/// The cores this process may use, which caps the threads any solver starts. A machine with
+/// one core cannot show that thread counts agree, so under `CI=true` (whose machines have two
+/// or more) one core is a failure rather than a test that proves nothing.
+pub fn cores() -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
+    assert!(
+        cores >= 2 || std::env::var("CI").as_deref() != Ok("true"),
+        "CI=true on a machine with {cores} core: no second thread can run"
+    );
+    cores
+}

@@ -8,6 +8,7 @@ use deepcontact_experiments::compare::{
     self, CURVES_COLUMNS, Config, Results, STEPS_COLUMNS, SUMMARY_COLUMNS, StepRecord,
 };
 use deepcontact_experiments::seeds::parse_seeds;
+use deepcontact_pgs::{PgsPositionSolver, PgsSettings, PgsSolver};
 
 /// Two seeds and enough steps to get past the free fall (the first contacts come near step 33).
 fn small(threads: usize) -> Config {
@@ -57,40 +58,103 @@ fn scratch_dir(name: &str) -> PathBuf {
     dir
 }
 
+/// Steps of the thread tests: by step 80 the pile is one island that outweighs the rest, so
+/// the world hands it to the solver itself (not to a fork on one thread) and its sweep is
+/// shared; at 45 steps every island is still small.
+const THREAD_STEPS: u64 = 80;
+
+/// The most threads that a PGS solver of `settings` ran one island's sweep on over the first
+/// run of the thread tests (seed 12345, `builtin`, [`THREAD_STEPS`]), islands on
+/// `island_threads` threads: whether the comparison's runs of that solver reach the thread
+/// count they ask for.
+fn threads_used_on_small(settings: PgsSettings, island_threads: usize) -> usize {
+    let mut world = deepcontact_tests::build(&deepcontact_core::scene::pile(12345, 100).unwrap());
+    world
+        .set_settings(deepcontact_core::WorldSettings {
+            island_threads,
+            ..deepcontact_core::WorldSettings::default()
+        })
+        .unwrap();
+    let mut warm = deepcontact_experiments::full_registry()
+        .build_provider("builtin")
+        .unwrap();
+    let mut solvers = (PgsSolver::with_settings(settings), PgsPositionSolver::new());
+    deepcontact_tests::run_with(
+        &mut world,
+        warm.as_mut(),
+        &mut solvers,
+        THREAD_STEPS,
+        |_, _| {},
+    )
+    .unwrap();
+    solvers.0.threads_used()
+}
+
 #[test]
-fn compare_outputs_are_the_same_for_one_two_and_four_solver_threads() {
+fn compare_outputs_are_the_same_on_one_two_and_more_threads_than_cores() {
     // Islands side by side and every island through the chunked sweep (`parallel_from=0`,
-    // `domains=0`) on 1, 2 and 4 threads, for every default provider: the same step records
-    // and curves, and the same as the plain sweep one island after another (∞-norm stop
-    // rule).
+    // `domains=0`, one batch a chunk so that the pile's colours have chunks for several
+    // threads) on 1, 2 and one more thread than the cores (capped at the cores), for a
+    // provider of each kind (zeros, carried, random, an oracle, a grid filter, a CNN) on seed
+    // 12345: the same step records and curves, and the same as the plain sweep one island
+    // after another (∞-norm stop rule). Shared sweeps meet at every colour of every
+    // iteration, which on a loaded 2-core machine costs more than the arithmetic: a provider
+    // of each kind keeps the test to seconds.
+    let cores = deepcontact_tests::cores();
     let config = |solver: &str, island_threads: usize| Config {
+        warm_starts: split_spec_list("none,builtin,random,copy,grid,pressure").unwrap(),
         solvers: split_spec_list(solver).unwrap(),
         world: deepcontact_core::WorldSettings {
             island_threads,
             collide_threads: island_threads,
             ..deepcontact_core::WorldSettings::default()
         },
+        seeds: vec![12345],
+        steps: THREAD_STEPS,
         ..small(2)
     };
     let plain = compare::run_experiment(&config("pgs", 1)).unwrap();
-    for threads in [1, 2, 4] {
-        let spec = format!("pgs:domains=0,parallel_from=0,threads={threads}");
+    for threads in [1, 2, cores + 1] {
+        let spec = format!("pgs:chunk=1,domains=0,parallel_from=0,threads={threads}");
         let mut chunked = compare::run_experiment(&config(&spec, threads)).unwrap();
         assert_eq!(chunked.solvers, [spec]);
         // The solver's name is the only difference.
         chunked.solvers.clone_from(&plain.solvers);
         assert_same_numbers(&plain, &chunked);
+        let settings = PgsSettings {
+            threads,
+            parallel_min_points: 0,
+            domains: 0,
+            chunk: 1,
+            ..PgsSettings::default()
+        };
+        assert_eq!(
+            threads_used_on_small(settings, threads),
+            threads.min(cores),
+            "chunked sweep, {threads} threads asked for"
+        );
     }
-    // Every island in the domain plan (3 domains): its own Gauss-Seidel order, the same
-    // numbers on 1, 2 and 4 threads.
+    // Every island in the domain plan (3 domains: 2 side by side): its own Gauss-Seidel
+    // order, the same numbers on 1, 2 and more threads than the cores.
     let domains = |threads: usize| {
         let spec = format!("pgs:domains=3,parallel_from=0,threads={threads}");
         let mut run = compare::run_experiment(&config(&spec, threads)).unwrap();
         run.solvers.clone_from(&plain.solvers);
+        let settings = PgsSettings {
+            threads,
+            parallel_min_points: 0,
+            domains: 3,
+            ..PgsSettings::default()
+        };
+        assert_eq!(
+            threads_used_on_small(settings, threads),
+            threads.min(cores).min(2),
+            "domain plan, {threads} threads asked for"
+        );
         run
     };
     let one = domains(1);
-    for threads in [2, 4] {
+    for threads in [2, cores + 1] {
         assert_same_numbers(&one, &domains(threads));
     }
 }
@@ -276,19 +340,70 @@ fn several_solvers_get_a_solver_column_and_their_own_figures() {
 
 #[test]
 fn a_third_party_provider_is_compared_through_its_registry() {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    use deepcontact_core::{Impulse, Observation, WarmStart, WarmStartContext, WarmStartError};
+    /// `bad:value=25` under its own name, counting the islands it starts.
+    struct HalfBad(Box<dyn WarmStart>, Arc<AtomicUsize>);
+    impl WarmStart for HalfBad {
+        fn name(&self) -> &str {
+            "half_bad"
+        }
+        fn warm_start(
+            &mut self,
+            ctx: &WarmStartContext<'_>,
+            out: &mut [Impulse],
+        ) -> Result<(), WarmStartError> {
+            self.1.fetch_add(1, Ordering::Relaxed);
+            self.0.warm_start(ctx, out)
+        }
+        fn observe(&mut self, ctx: &WarmStartContext<'_>, seen: &Observation<'_>) {
+            self.0.observe(ctx, seen);
+        }
+    }
+    let calls = Arc::new(AtomicUsize::new(0));
     let mut registry = deepcontact_experiments::full_registry();
-    registry.register_provider("half_bad", "bad halved", |_, r| {
-        r.build_provider("bad:value=25")
+    let counter = Arc::clone(&calls);
+    registry.register_provider("half_bad", "bad halved", move |_, r| {
+        Ok(Box::new(HalfBad(
+            r.build_provider("bad:value=25")?,
+            Arc::clone(&counter),
+        )))
     });
+    // Seed 7's first contact comes at step 34: 40 steps give the provider six steps.
     let config = Config {
         warm_starts: split_spec_list("none,half_bad").unwrap(),
         seeds: vec![7],
-        steps: 3,
+        steps: 40,
         progress: false,
         ..Config::default()
     };
     let results = compare::run_experiment_with(&config, &registry).unwrap();
     assert_eq!(results.warm_starts, ["none", "half_bad"]);
+    let calls = calls.load(Ordering::Relaxed);
+    assert!(calls >= 6, "half_bad started {calls} islands");
+    // Its starts of 25 N·s, far from the solved impulses, show in the records: every step
+    // with contacts has a warm-start error of hundreds, where zeros have a small one.
+    for run in &results.runs {
+        let name = &results.warm_starts[run.warm_start];
+        let touching: Vec<_> = run.steps.iter().filter(|r| r.contacts > 0).collect();
+        assert!(
+            touching.len() >= 6,
+            "{name}: {} steps with contacts",
+            touching.len()
+        );
+        for r in touching {
+            let far = r.mse_normal > 100.0;
+            assert_eq!(
+                far,
+                name == "half_bad",
+                "{name}, step {}: {}",
+                r.step,
+                r.mse_normal
+            );
+        }
+    }
 }
 
 #[test]

@@ -336,6 +336,7 @@ fn non_finite_state_entering_a_step_is_reported_with_the_body() {
 #[test]
 fn malformed_problems_are_rejected_by_the_solver() {
     let (mut problem, _) = settled_problems().swap_remove(0);
+    let body_b = problem.points[0].body_b;
     problem.points[0].body_b = 10_000;
     let mut imp = vec![Impulse::ZERO; problem.len()];
     let mut vel = vec![Velocity::default(); problem.bodies.len()];
@@ -349,8 +350,10 @@ fn malformed_problems_are_rejected_by_the_solver() {
         )
         .unwrap_err();
     assert!(matches!(err, CoreError::InvalidProblem(_)), "{err}");
+    // The problem valid again, the impulses one long: only the length is wrong.
     let mut short = vec![Impulse::ZERO; 1];
-    problem.points[0].body_b = 1;
+    problem.points[0].body_b = body_b;
+    problem.validate().unwrap();
     let err = PgsSolver::new()
         .solve(
             &problem,
@@ -365,8 +368,9 @@ fn malformed_problems_are_rejected_by_the_solver() {
             err,
             CoreError::LengthMismatch {
                 what: "impulses",
-                ..
-            } | CoreError::InvalidProblem(_)
+                expected,
+                got: 1,
+            } if expected == problem.len()
         ),
         "{err}"
     );

@@ -11,12 +11,15 @@ use deepcontact_tests::{build, run_with};
 /// FNV-1a 64 over the little-endian bytes of `words` (stable by definition, unlike
 /// `std::collections::hash_map::DefaultHasher`, whose algorithm may change between releases).
 fn fnv1a64(words: impl IntoIterator<Item = u64>) -> u64 {
+    fnv1a64_bytes(words.into_iter().flat_map(u64::to_le_bytes))
+}
+
+/// FNV-1a 64 over `bytes`.
+fn fnv1a64_bytes(bytes: impl IntoIterator<Item = u8>) -> u64 {
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for w in words {
-        for byte in w.to_le_bytes() {
-            h ^= u64::from(byte);
-            h = h.wrapping_mul(0x0000_0100_0000_01b3);
-        }
+    for byte in bytes {
+        h ^= u64::from(byte);
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
     }
     h
 }
@@ -54,6 +57,17 @@ fn pile_hash_on(
     position: PgsPositionSolver,
     island_threads: usize,
 ) -> (u64, usize) {
+    let (hash, bodies, _) = pile_run(solver, position, island_threads);
+    (hash, bodies)
+}
+
+/// [`pile_hash_on`], and the most threads that one island's velocity sweep ran on
+/// ([`PgsSolver::threads_used`]).
+fn pile_run(
+    solver: PgsSolver,
+    position: PgsPositionSolver,
+    island_threads: usize,
+) -> (u64, usize, usize) {
     let mut world = build(&scene::pile(12345, 100).unwrap());
     world
         .set_settings(WorldSettings {
@@ -72,21 +86,23 @@ fn pile_hash_on(
         .bodies()
         .iter()
         .flat_map(|b| b.state().map(f64::to_bits));
-    (fnv1a64(words), world.bodies().len())
+    (
+        fnv1a64(words),
+        world.bodies().len(),
+        solvers.0.threads_used(),
+    )
 }
 
 #[test]
 fn fnv1a64_matches_the_reference_vectors() {
-    // FNV-1a 64 reference values: empty input, and the bytes of 0u64 (eight zero bytes).
+    // The published FNV-1a 64 values (Fowler, Noll, Vo test suite).
+    assert_eq!(fnv1a64_bytes(*b""), 0xcbf2_9ce4_8422_2325);
+    assert_eq!(fnv1a64_bytes(*b"a"), 0xaf63_dc4c_8601_ec8c);
+    assert_eq!(fnv1a64_bytes(*b"foobar"), 0x8594_4171_f739_67e8);
+    // A word is its 8 bytes, least significant first: "foobar" and two zero bytes.
+    let word = u64::from_le_bytes(*b"foobar\0\0");
+    assert_eq!(fnv1a64([word]), fnv1a64_bytes(*b"foobar\0\0"));
     assert_eq!(fnv1a64([]), 0xcbf2_9ce4_8422_2325);
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for _ in 0..8 {
-        h = h.wrapping_mul(0x0000_0100_0000_01b3);
-    }
-    assert_eq!(fnv1a64([0]), h);
-    // "a" = 0x61 alone is the published 0xaf63dc4c8601ec8c; a word carries 8 bytes, so check
-    // the byte order instead: different words must hash differently.
-    assert_ne!(fnv1a64([1, 2]), fnv1a64([2, 1]));
 }
 
 #[test]
@@ -101,8 +117,9 @@ fn pile_golden_hash() {
     );
 }
 
-/// The chunked sweeps on every island (`parallel_from` 0) with 1, 2 and 4 threads: the
-/// velocity sweep in the chunked plan (`domains` 0), or in the domain plan of `domains`.
+/// The chunked sweeps on every island (`parallel_from` 0) on `threads` threads: the
+/// velocity sweep in the chunked plan (`domains` 0, one batch a chunk so that the pile's
+/// colours have chunks for several threads), or in the domain plan of `domains`.
 fn chunked(threads: usize, position: bool) -> (PgsSolver, PgsPositionSolver) {
     planned(threads, position, 0)
 }
@@ -114,6 +131,7 @@ fn planned(threads: usize, position: bool, domains: usize) -> (PgsSolver, PgsPos
         threads,
         parallel_min_points: 0,
         domains,
+        chunk: 1,
         ..PgsSettings::default()
     });
     let position = if position {
@@ -129,20 +147,24 @@ fn planned(threads: usize, position: bool, domains: usize) -> (PgsSolver, PgsPos
 }
 
 #[test]
-fn pile_golden_hash_is_the_same_on_one_two_and_four_threads() {
+fn pile_golden_hash_is_the_same_on_one_two_and_more_threads_than_cores() {
     // Islands side by side, and the chunked velocity sweep, give the golden bits on any
-    // thread count (the ∞-norm stop rule sees the same maxima).
-    for threads in [1, 2, 4] {
+    // thread count (the ∞-norm stop rule sees the same maxima). The counts asked for are 1,
+    // 2 and one more than the cores; the sweep runs on as many as the cores allow.
+    let cores = deepcontact_tests::cores();
+    let counts = [1, 2, cores + 1];
+    for threads in counts {
         let (solver, position) = chunked(threads, false);
-        let (hash, _) = pile_hash_on(solver, position, threads);
+        let (hash, _, used) = pile_run(solver, position, threads);
         assert_eq!(
             hash, PILE_12345_250_BUILTIN_PGS,
             "islands and chunked velocity sweep on {threads} threads: {hash:#018x}"
         );
+        assert_eq!(used, threads.min(cores), "{threads} threads asked for");
     }
     // The coloured position pass visits the points in another order (another, equally valid
     // result), the same for every thread count.
-    let hashes = [1, 2, 4].map(|threads| {
+    let hashes = counts.map(|threads| {
         let (solver, position) = chunked(threads, true);
         pile_hash_on(solver, position, threads).0
     });
@@ -151,8 +173,10 @@ fn pile_golden_hash_is_the_same_on_one_two_and_four_threads() {
         "coloured position pass, 1 and 2 threads"
     );
     assert_eq!(
-        hashes[0], hashes[2],
-        "coloured position pass, 1 and 4 threads"
+        hashes[0],
+        hashes[2],
+        "coloured position pass, 1 and {} threads",
+        cores + 1
     );
     assert_ne!(
         hashes[0], PILE_12345_250_BUILTIN_PGS,
@@ -161,18 +185,26 @@ fn pile_golden_hash_is_the_same_on_one_two_and_four_threads() {
 }
 
 #[test]
-fn pile_in_the_domain_plan_ends_in_the_same_bits_on_one_two_and_four_threads() {
+fn pile_in_the_domain_plan_ends_in_the_same_bits_on_one_two_and_more_threads_than_cores() {
     // Eight domains on every island, in the velocity sweep and the position pass: another
     // Gauss-Seidel order than the golden run's (so another hash), the same for every thread
-    // count.
-    let hashes = [1, 2, 4].map(|threads| {
+    // count (1, 2 and one more than the cores).
+    let cores = deepcontact_tests::cores();
+    let runs = [1, 2, cores + 1].map(|threads| {
         let (solver, position) = planned(threads, true, 8);
-        pile_hash_on(solver, position, threads).0
+        let (hash, _, used) = pile_run(solver, position, threads);
+        // No more threads than the cores, nor than the 4 domains of a phase.
+        assert_eq!(
+            used,
+            threads.min(cores).min(4),
+            "{threads} threads asked for"
+        );
+        hash
     });
-    assert_eq!(hashes[0], hashes[1], "domain plan, 1 and 2 threads");
-    assert_eq!(hashes[0], hashes[2], "domain plan, 1 and 4 threads");
+    assert_eq!(runs[0], runs[1], "domain plan, 1 and 2 threads");
+    assert_eq!(runs[0], runs[2], "domain plan, 1 and {} threads", cores + 1);
     assert_ne!(
-        hashes[0], PILE_12345_250_BUILTIN_PGS,
+        runs[0], PILE_12345_250_BUILTIN_PGS,
         "the domain plan did not run"
     );
 }

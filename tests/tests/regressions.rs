@@ -1,14 +1,16 @@
 //! Regression tests of the bugs found by fuzzing and property testing (one test per bug,
-//! named after it). The harness is the fuzzers' own (`deepcontact-fuzz-harness`, `fuzz/harness/`).
+//! named after it). A fuzz crash is rebuilt by hand as a valid problem that meets the same
+//! arithmetic: the crash bytes themselves build problems that `ContactProblem::add_point` now
+//! refuses, so they would never reach the solver whose guard the test pins.
 
 use std::path::Path;
 
 use deepcontact_core::math::Real;
 use deepcontact_core::{
-    ContactId, ContactProblem, Impulse, PointDesc, ProblemBody, SolveReport, SolverSettings,
-    Vector, Velocity, VelocitySolver,
+    ContactId, ContactProblem, Impulse, PointDesc, ProblemBody, ResidualNorm, SolveReport,
+    SolverSettings, Vector, Velocity, VelocitySolver,
 };
-use deepcontact_pgs::PgsSolver;
+use deepcontact_pgs::{Ordering, PgsSettings, PgsSolver};
 
 use deepcontact_core::{CoreError, scene};
 use deepcontact_onnx::{ModelCard, OnnxError};
@@ -71,69 +73,168 @@ fn regression_empty_pile_blamed_the_radius() {
     );
 }
 
-/// cargo-fuzz `solve_problem` (crash-41447d4d…): PGS started from a finite negative normal
-/// impulse panicked in `clamp` (friction bound μ λn < 0). Starts are now projected onto the
-/// cone first.
-#[test]
-fn regression_pgs_panicked_on_a_negative_normal_start() {
-    const CRASH: &[u8] = &[
-        25, 53, 53, 53, 53, 53, 53, 53, 49, 53, 52, 210, 65, 51, 51, 51, 51, 51, 51, 51, 51, 51,
-        51, 51, 51, 48, 48, 48, 50, 48, 51, 51, 51, 179, 51, 51, 51, 51, 19, 19, 51, 51, 51, 51,
-        53, 53, 49, 53, 52, 210, 65, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 48, 48, 208,
-        205, 48, 51, 51, 51, 179, 51, 51, 51, 51, 19, 19, 49, 52, 56, 56, 54, 53, 56, 57, 50, 53,
-        57, 54, 50, 51, 55, 56, 49, 55, 49, 56, 244, 103, 254, 255, 255, 224, 255, 255, 0, 0, 152,
-        152, 152, 152, 1, 0, 0, 0, 0, 0, 0, 31, 152, 152, 52, 152, 152, 152,
-    ];
-    deepcontact_fuzz_harness::solve_problem(CRASH);
-
-    // The same bug on a hand-built problem: one ball resting on the ground.
-    let mut p = ContactProblem::new();
-    let body = |y: Real, inv_mass: Real| ProblemBody {
+/// A body of a hand-built problem, at rest unless `velocity` says otherwise.
+fn body(x: Real, y: Real, inv_mass: Real, inv_inertia: Real, velocity: Vector) -> ProblemBody {
+    ProblemBody {
         world_index: u32::MAX,
-        position: Vector::new(0.0, y),
+        position: Vector::new(x, y),
         angle: 0.0,
-        linear_velocity: Vector::new(0.0, -0.1),
+        linear_velocity: velocity,
         angular_velocity: 0.0,
         inv_mass,
-        inv_inertia: 2.0 * inv_mass,
-    };
-    let ground = p.add_body(body(-0.5, 0.0));
-    let ball = p.add_body(body(0.5, 1.0));
+        inv_inertia,
+    }
+}
+
+/// Adds a one-point manifold between bodies `a` and `b` of `p`.
+fn add_contact(
+    p: &mut ContactProblem,
+    a: u32,
+    b: u32,
+    point: Vector,
+    normal: Vector,
+    friction: Real,
+) {
     p.begin_manifold();
-    let id = ContactId {
-        body_a: 0,
-        body_b: 1,
-        feature_a: 0,
-        feature_b: 0,
-    };
     p.add_point(&PointDesc {
-        id,
-        body_a: ground,
-        body_b: ball,
-        point: Vector::zeros(),
-        normal: Vector::new(0.0, 1.0),
+        id: ContactId {
+            body_a: a,
+            body_b: b,
+            feature_a: p.len() as u64,
+            feature_b: 0,
+        },
+        body_a: a,
+        body_b: b,
+        point,
+        normal,
         separation: -0.01,
-        friction: 0.5,
+        friction,
         restitution: 0.0,
         restitution_threshold: 1.0,
     })
-    .unwrap();
-    let mut imp = vec![Impulse::new(-1.0, 0.3)];
-    let mut vel = vec![Velocity::default(); 2];
-    PgsSolver::new()
-        .solve(
-            &p,
-            &SolverSettings::default(),
-            &mut imp,
-            &mut vel,
-            &mut SolveReport::default(),
-        )
-        .unwrap();
-    assert!(
-        imp[0].normal >= 0.0 && imp[0].tangent.abs() <= 0.5 * imp[0].normal + 1e-12,
-        "{:?}",
-        imp[0]
+    .expect("a valid point");
+}
+
+/// PGS in each of its sweeps: coloured with lanes (the default), one manifold at a time,
+/// the problem's order, and every island in the chunked plan and in the domain plan.
+fn pgs_plans() -> [(&'static str, PgsSettings); 5] {
+    let d = PgsSettings::default();
+    [
+        ("default", d),
+        ("no lanes", PgsSettings { lanes: false, ..d }),
+        (
+            "sequential",
+            PgsSettings {
+                ordering: Ordering::Sequential,
+                ..d
+            },
+        ),
+        (
+            "chunked",
+            PgsSettings {
+                parallel_min_points: 0,
+                domains: 0,
+                chunk: 1,
+                ..d
+            },
+        ),
+        (
+            "domains",
+            PgsSettings {
+                parallel_min_points: 0,
+                domains: 2,
+                ..d
+            },
+        ),
+    ]
+}
+
+/// Solves `problem` from `start` with every plan of [`pgs_plans`] under every norm, and
+/// checks that each solve is refused as diverged in iteration `iteration` (the sweep whose
+/// result first held a non-finite value, or the iteration after which one was returned).
+fn assert_diverges_in(problem: &ContactProblem, start: &[Impulse], iteration: u32) {
+    problem.validate().expect("the problem is valid");
+    for (plan, pgs) in pgs_plans() {
+        for norm in [
+            ResidualNorm::Infinity,
+            ResidualNorm::L2,
+            ResidualNorm::Contact,
+        ] {
+            let settings = SolverSettings {
+                norm,
+                max_iterations: 50,
+                ..SolverSettings::default()
+            };
+            let mut impulses = start.to_vec();
+            let mut velocities = vec![Velocity::default(); problem.bodies.len()];
+            let result = PgsSolver::with_settings(pgs).solve(
+                problem,
+                &settings,
+                &mut impulses,
+                &mut velocities,
+                &mut SolveReport::default(),
+            );
+            let expected = format!("in iteration {iteration}");
+            match &result {
+                Err(CoreError::Solver { solver, reason })
+                    if solver == "pgs"
+                        && reason.starts_with("non-finite impulse")
+                        && reason.ends_with(&expected) => {}
+                other => panic!(
+                    "{plan}, {norm:?}: expected a divergence {expected}, got {other:?} \
+                     (impulses {impulses:?}, velocities {velocities:?})"
+                ),
+            }
+        }
+    }
+}
+
+/// cargo-fuzz `solve_problem` (crash-41447d4d…): PGS started from a finite negative normal
+/// impulse panicked in `clamp` (friction bound μ λn < 0). Starts are now projected onto the
+/// cone first, so that start is the same as a start of zero.
+#[test]
+fn regression_pgs_panicked_on_a_negative_normal_start() {
+    // One ball resting on the ground.
+    let mut p = ContactProblem::new();
+    let down = Vector::new(0.0, -0.1);
+    let ground = p.add_body(body(0.0, -0.5, 0.0, 0.0, down));
+    let ball = p.add_body(body(0.0, 0.5, 1.0, 2.0, down));
+    add_contact(
+        &mut p,
+        ground,
+        ball,
+        Vector::new(0.1, 0.0),
+        Vector::new(0.0, 1.0),
+        0.5,
     );
+    let solve = |pgs: PgsSettings, start: Impulse| {
+        let mut imp = vec![start];
+        let mut vel = vec![Velocity::default(); 2];
+        PgsSolver::with_settings(pgs)
+            .solve(
+                &p,
+                &SolverSettings::default(),
+                &mut imp,
+                &mut vel,
+                &mut SolveReport::default(),
+            )
+            .unwrap();
+        (imp[0], vel)
+    };
+    for (plan, pgs) in pgs_plans() {
+        let (imp, vel) = solve(pgs, Impulse::new(-1.0, 0.3));
+        assert!(
+            imp.normal >= 0.0 && imp.tangent.abs() <= 0.5 * imp.normal + 1e-12,
+            "{plan}: {imp:?}"
+        );
+        // The projected start is (0, 0): the very same solve, bit for bit.
+        let (zero, zero_vel) = solve(pgs, Impulse::ZERO);
+        assert_eq!(
+            (imp, vel),
+            (zero, zero_vel),
+            "{plan}: start (-1, 0.3) and (0, 0)"
+        );
+    }
 }
 
 /// cargo-fuzz `solve_problem` (crash-181ce052…): PGS returned `Ok` with a NaN tangent
@@ -141,18 +242,49 @@ fn regression_pgs_panicked_on_a_negative_normal_start() {
 /// checks the sum of squares too, and every impulse and velocity before returning.
 #[test]
 fn regression_pgs_returned_ok_with_a_nan_impulse() {
-    const CRASH: &[u8] = &[
-        25, 53, 53, 53, 53, 53, 53, 53, 49, 53, 52, 210, 4, 5, 51, 51, 6, 4, 65, 4, 6, 6, 51, 51,
-        51, 51, 51, 51, 51, 48, 48, 48, 50, 48, 51, 49, 51, 51, 51, 51, 51, 51, 51, 19, 19, 51, 51,
-        51, 51, 51, 51, 5, 4, 65, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 255, 8, 51,
-        4, 152, 1, 0, 0, 25, 53, 53, 53, 53, 53, 53, 53, 49, 53, 52, 210, 4, 5, 51, 51, 6, 4, 65,
-        4, 6, 6, 51, 51, 51, 51, 51, 51, 51, 48, 48, 48, 50, 48, 51, 49, 51, 51, 51, 51, 51, 51,
-        51, 19, 19, 51, 51, 51, 51, 51, 51, 5, 4, 65, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51,
-        51, 51, 255, 8, 51, 4, 152, 1, 0, 0, 31, 0, 0, 152, 0, 4, 4, 4, 65, 4, 4, 0, 42, 0, 0, 0,
-        0, 31, 152, 152, 52, 152, 152, 152, 31, 0, 0, 152, 0, 4, 4, 4, 65, 4, 4, 0, 42, 0, 0, 0, 0,
-        31, 152, 152, 52, 152, 152, 152,
-    ];
-    deepcontact_fuzz_harness::solve_problem(CRASH);
+    // A light ball (inverse mass 1e300) whose start of 1e10 N·s throws it up at ∞ m/s: the
+    // first sweep's tangent velocity is ∞ · 0 = NaN, so are its impulse changes. The sum of
+    // squares sees them in that sweep, whatever the stop rule's norm.
+    let mut p = ContactProblem::new();
+    let ground = p.add_body(body(0.0, -0.5, 0.0, 0.0, Vector::zeros()));
+    let ball = p.add_body(body(0.0, 0.5, 1e300, 0.0, Vector::zeros()));
+    add_contact(
+        &mut p,
+        ground,
+        ball,
+        Vector::zeros(),
+        Vector::new(0.0, 1.0),
+        0.5,
+    );
+    assert_diverges_in(&p, &[Impulse::new(1e10, 0.0)], 1);
+
+    // The same ball with a finite start and a spin of ∞ rad/s from two contacts whose
+    // starts are each finite: every impulse change stays finite (each sweep cancels a finite
+    // part of the spin, ∞ − 1.2e308 = ∞), so only the last check of the velocities sees it,
+    // once the second sweep has changed nothing (converged).
+    let mut p = ContactProblem::new();
+    let ground = p.add_body(body(0.0, -0.5, 0.0, 0.0, Vector::zeros()));
+    let wall = p.add_body(body(-1.0, 0.5, 0.0, 0.0, Vector::zeros()));
+    let ball = p.add_body(body(0.0, 0.5, 1.0, 1e298, Vector::zeros()));
+    // r × n = 0.3 at both points, so both starts spin the ball the same way.
+    add_contact(
+        &mut p,
+        ground,
+        ball,
+        Vector::new(0.3, 0.0),
+        Vector::new(0.0, 1.0),
+        0.0,
+    );
+    add_contact(
+        &mut p,
+        wall,
+        ball,
+        Vector::new(-0.5, 0.2),
+        Vector::new(1.0, 0.0),
+        0.0,
+    );
+    let start = [Impulse::new(4e10, 0.0); 2];
+    assert_diverges_in(&p, &start, 2);
 }
 
 /// cargo-fuzz `solve_problem` (crash-07ff248e…): a sweep that overflowed to λn = ∞ gave the
@@ -160,12 +292,20 @@ fn regression_pgs_returned_ok_with_a_nan_impulse() {
 /// without the panic and reports the divergence as `PgsError::Diverged`.
 #[test]
 fn regression_pgs_panicked_on_a_nan_friction_bound() {
-    const CRASH: &[u8] = &[
-        25, 53, 53, 53, 53, 53, 49, 48, 51, 48, 56, 210, 4, 5, 51, 51, 6, 4, 122, 65, 4, 6, 6, 51,
-        51, 51, 51, 51, 51, 51, 48, 48, 48, 50, 48, 51, 49, 51, 51, 51, 51, 51, 51, 51, 19, 19, 51,
-        51, 51, 51, 51, 51, 5, 4, 65, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 255, 8,
-        51, 4, 152, 1, 0, 0, 31, 0, 0, 152, 0, 4, 4, 4, 4, 65, 0, 42, 4, 0, 0, 0, 0, 31, 152, 152,
-        52, 152, 152, 152,
-    ];
-    deepcontact_fuzz_harness::solve_problem(CRASH);
+    // A heavy ball (inverse mass 1e-300: effective mass 1e300) falling at 1e10 m/s on a
+    // frictionless ground: the first sweep's normal impulse is 1e300 · 1e10 = ∞, which makes
+    // the next sweep's friction bound 0 · ∞ = NaN. The divergence is refused in the sweep that
+    // made it, before any bound of NaN.
+    let mut p = ContactProblem::new();
+    let ground = p.add_body(body(0.0, -0.5, 0.0, 0.0, Vector::zeros()));
+    let ball = p.add_body(body(0.0, 0.5, 1e-300, 0.0, Vector::new(0.0, -1e10)));
+    add_contact(
+        &mut p,
+        ground,
+        ball,
+        Vector::zeros(),
+        Vector::new(0.0, 1.0),
+        0.0,
+    );
+    assert_diverges_in(&p, &[Impulse::ZERO], 1);
 }

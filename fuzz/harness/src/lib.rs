@@ -157,11 +157,24 @@ fn solvers(bytes: &mut Bytes<'_>) -> Vec<Box<dyn VelocitySolver>> {
     ]
 }
 
+/// What one [`solve_problem`] input reached.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct SolveOutcome {
+    /// The problem passed [`ContactProblem::validate`] and has contact points.
+    pub valid_problem: bool,
+    /// Solves of a valid, non-empty problem under valid settings, with buffers of the right
+    /// length and a finite start: the inputs whose results the contract speaks of.
+    pub admissible_solves: usize,
+    /// Of those, the solves that returned `Ok` (their impulses, velocities and report checked).
+    pub checked_solves: usize,
+}
+
 /// Bytes → a contact problem, stop rule, warm start and buffers → every solver. Each solve
 /// must return `Ok` or a typed error; an `Ok` on a valid problem with buffers of the right
 /// length must leave finite, admissible impulses and finite velocities; an invalid problem
-/// must never be solved.
-pub fn solve_problem(data: &[u8]) {
+/// must never be solved. Returns what the input reached, so that a caller can tell inputs
+/// that were refused early from inputs whose solved results were checked.
+pub fn solve_problem(data: &[u8]) -> SolveOutcome {
     let mut bytes = Bytes::new(data);
     let problem = problem_from(&mut bytes);
     let valid = problem.validate();
@@ -189,6 +202,12 @@ pub fn solve_problem(data: &[u8]) {
         })
         .collect();
     let start_finite = start.iter().all(Impulse::is_finite);
+    let mut outcome = SolveOutcome {
+        valid_problem: valid.is_ok() && !problem.points.is_empty(),
+        ..SolveOutcome::default()
+    };
+    let admissible =
+        outcome.valid_problem && settings_ok && len_delta == 0 && body_delta == 0 && start_finite;
     for mut solver in solvers(&mut bytes) {
         let mut impulses = start.clone();
         let mut velocities = vec![Velocity::default(); problem.bodies.len() + body_delta];
@@ -213,8 +232,14 @@ pub fn solve_problem(data: &[u8]) {
                 "{name} accepted invalid settings {settings:?}"
             );
         }
+        if admissible {
+            outcome.admissible_solves += 1;
+        }
         if result.is_err() || len_delta != 0 || body_delta != 0 || !start_finite {
             continue;
+        }
+        if admissible {
+            outcome.checked_solves += 1;
         }
         for (i, (imp, p)) in impulses.iter().zip(&problem.points).enumerate() {
             assert!(
@@ -244,6 +269,7 @@ pub fn solve_problem(data: &[u8]) {
             "{name}: {report:?}"
         );
     }
+    outcome
 }
 
 /// A fixed small valid problem: one box corner pair on the ground, one circle on the box.
@@ -387,8 +413,8 @@ pub fn parse_specs(data: &[u8]) {
 /// side from the first byte: 0.5–128 m), then a world built from the scene and stepped three
 /// times with `builtin` and PGS. Parsing and checking give the circles or a typed
 /// `SceneFile` error; a scene that passes the checks builds and steps to finite bodies, or
-/// fails with a typed error; never a panic.
-pub fn scene_file(data: &[u8]) {
+/// fails with a typed error; never a panic. Returns the steps made (0 for a refused scene).
+pub fn scene_file(data: &[u8]) -> usize {
     use deepcontact_core::scene_file::{parse, pile_from_circles};
     use deepcontact_core::{CarriedWarmStart, CoreError, World, WorldSettings};
 
@@ -398,7 +424,7 @@ pub fn scene_file(data: &[u8]) {
         Ok(c) => c,
         Err(e) => {
             assert!(matches!(e, CoreError::SceneFile { .. }), "{e:?}");
-            return;
+            return 0;
         }
     };
     assert!(!circles.is_empty(), "parse gave an empty scene");
@@ -406,19 +432,19 @@ pub fn scene_file(data: &[u8]) {
         Ok(s) => s,
         Err(e) => {
             assert!(matches!(e, CoreError::SceneFile { .. }), "{e:?}");
-            return;
+            return 0;
         }
     };
     let Ok(mut world) = World::with_bodies(WorldSettings::default(), &scene.bodies) else {
-        return;
+        return 0;
     };
     let (mut solver, mut position) = (PgsSolver::new(), deepcontact_pgs::PgsPositionSolver::new());
-    for _ in 0..3 {
+    for steps in 0..3 {
         if world
             .step(&mut CarriedWarmStart, &mut solver, &mut position)
             .is_err()
         {
-            return;
+            return steps;
         }
         for b in world.bodies() {
             assert!(
@@ -427,4 +453,5 @@ pub fn scene_file(data: &[u8]) {
             );
         }
     }
+    3
 }

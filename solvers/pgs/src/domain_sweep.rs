@@ -45,15 +45,15 @@ fn useful_threads(threads: usize, n: usize) -> usize {
 
 /// Sweeps `parts` (the domains of `partition`) on up to `threads` threads (≥ 1; no more than
 /// [`useful_threads`]) until `stop(iteration, measures)` (0-based) holds or `max_iterations`
-/// have run. Returns every iteration's measures, folded in sweep order; the parts end with
-/// the seams' last values.
+/// have run. Returns every iteration's measures, folded in sweep order, and the threads it
+/// ran on; the parts end with the seams' last values.
 pub(crate) fn sweep_parts<P: Part>(
     parts: &mut [P],
     partition: &Partition,
     threads: usize,
     max_iterations: u32,
     stop: &(dyn Fn(u32, &P::Measures) -> bool + Sync),
-) -> Vec<P::Measures> {
+) -> (Vec<P::Measures>, usize) {
     let n = parts.len();
     let (links, ranges) = (&partition.links, &partition.link_ranges);
     // The seams' values, from the domains that hold them (both hold the island's value).
@@ -94,8 +94,9 @@ pub(crate) fn sweep_parts<P: Part>(
         lock(&done).push(all);
         stop(it, &all)
     };
+    let threads = useful_threads(threads, n);
     run_phased(
-        useful_threads(threads, n),
+        threads,
         max_iterations,
         &phase_starts([n.div_ceil(2), n / 2]),
         &process,
@@ -108,5 +109,8 @@ pub(crate) fn sweep_parts<P: Part>(
             part.set(s, shared[k as usize].load());
         }
     }
-    done.into_inner().unwrap_or_else(PoisonError::into_inner)
+    (
+        done.into_inner().unwrap_or_else(PoisonError::into_inner),
+        threads,
+    )
 }

@@ -74,7 +74,7 @@ impl PositionDomains {
             .collect();
         let stop =
             |it: u32, m: &PassMeasures| m.judge(it, settings, &mut PositionReport::default());
-        let passes = sweep_parts(
+        let (passes, _) = sweep_parts(
             &mut parts,
             &self.partition,
             threads,

@@ -8,7 +8,8 @@ use crate::{MAX_DOMAINS, Ordering, PgsSettings, PgsSolver};
 pub const MAX_THREADS: u64 = 64;
 
 /// Registers `pgs` (parameters `block=true|false`, `order=coloured|sequential`,
-/// `lanes=true|false`, `start=projected|raw`, `threads=1..64`, `parallel_from=POINTS`, `domains=0..63`;
+/// `lanes=true|false`, `start=projected|raw`, `threads=1..64`, `parallel_from=POINTS`, `domains=0..63`,
+/// `chunk=BATCHES`;
 /// defaults: [`PgsSettings::default`]).
 pub fn register(registry: &mut Registry) {
     registry.register_solver(
@@ -18,7 +19,8 @@ pub fn register(registry: &mut Registry) {
          bit-identical for any N), parallel_from=POINTS (islands from this size are swept in \
          fixed chunks that threads share; default 2048), domains=N (such islands cut into N \
          bands of their contact graph, the even ones swept side by side on threads, then the \
-         odd ones; 0: colours shared in chunks instead; default 16)",
+         odd ones; 0: colours shared in chunks instead; default 16), chunk=N (batches of 4 \
+         contacts per chunk of that colour plan, the unit a thread takes; default 16)",
         |p| {
             let d = PgsSettings::default();
             let block_solver = p.bool("block", d.block_solver)?;
@@ -42,6 +44,10 @@ pub fn register(registry: &mut Registry) {
                     format!("must be 0 to {MAX_DOMAINS}"),
                 ));
             }
+            let chunk = p.u64("chunk", d.chunk as u64)?;
+            if chunk == 0 {
+                return Err(p.invalid("chunk", "0", "must be >= 1"));
+            }
             let raw_start = match p.choice("start", &["projected", "raw"])? {
                 None => d.raw_start,
                 Some(v) => v == "raw",
@@ -59,6 +65,7 @@ pub fn register(registry: &mut Registry) {
                 threads: threads as usize,
                 parallel_min_points,
                 domains: domains as usize,
+                chunk: usize::try_from(chunk).unwrap_or(usize::MAX),
                 ..d
             })) as Box<dyn deepcontact_core::VelocitySolver>)
         },

@@ -81,6 +81,10 @@ pub struct PgsSettings {
     /// unchunked sweep's bits but shares every colour between threads through atomics, which
     /// scales worse.
     pub domains: usize,
+    /// Batches ([`LANES`] single-point manifolds each) per chunk of the chunked plan
+    /// (default 16; 0 counts as 1): the unit a thread takes, so no more threads share a colour
+    /// than it has chunks. Changes only the order in which `Σ Δλ²` is summed.
+    pub chunk: usize,
 }
 
 impl Default for PgsSettings {
@@ -94,6 +98,7 @@ impl Default for PgsSettings {
             threads: 1,
             parallel_min_points: 2048,
             domains: 16,
+            chunk: crate::velocity_chunked::CHUNK,
         }
     }
 }
@@ -144,6 +149,8 @@ pub struct PgsSolver {
     /// The small islands of a step (their indices), and how each is swept.
     pub(crate) small_islands: Vec<usize>,
     pub(crate) small_kinds: Vec<crate::velocity_lanes::Kind>,
+    /// The most threads one island's sweep has run on ([`Self::threads_used`]).
+    pub(crate) threads_used: usize,
 }
 
 impl PgsSolver {
@@ -158,6 +165,16 @@ impl PgsSolver {
             settings,
             ..Self::default()
         }
+    }
+
+    /// The most threads that one island's velocity sweep has run on with this solver since it
+    /// was made (0 before its first solve; 1 when every sweep ran on the calling thread). The
+    /// chunked and domain plans start no more threads than [`PgsSettings::threads`], the cores
+    /// the process may use, and the work the island offers side by side (the widest colour's
+    /// chunks; half the domains, rounded up). Tests read it to know that a thread count they
+    /// ask for is the one that ran; it never changes a result.
+    pub fn threads_used(&self) -> usize {
+        self.threads_used
     }
 
     /// Stage 1, prepare: copy the problem into rows, manifolds and packed velocities.
@@ -452,7 +469,7 @@ impl PgsSolver {
         settings: &SolverSettings,
         report: &mut SolveReport,
     ) -> (u32, Verdict) {
-        if self.plans_domains(points) {
+        let (it, verdict, threads) = if self.plans_domains(points) {
             self.domains.build(
                 self.settings.domains,
                 crate::sync::effective_threads(self.settings.threads),
@@ -478,15 +495,18 @@ impl PgsSolver {
                     rows: &mut self.rows,
                     vel: &mut self.vel,
                 },
-                crate::velocity_chunked::CHUNK,
+                self.settings.chunk.max(1),
                 crate::sync::effective_threads(self.settings.threads),
                 self.arch,
                 settings,
                 report,
             )
         } else {
-            self.solve_loop(settings, report)
-        }
+            let (it, verdict) = self.solve_loop(settings, report);
+            (it, verdict, 1)
+        };
+        self.threads_used = self.threads_used.max(threads);
+        (it, verdict)
     }
 
     /// Stage 4 of a solve that ran `it` iterations to `verdict`: the final projection, the
@@ -674,6 +694,9 @@ mod tests {
         solve_bits_on(problem, start, settings, stop, pulp::Arch::new())
     }
 
+    /// Impulses and velocities as bits, and the iterations run; then the L2 residuals as bits.
+    type SolveBits = ((Vec<u64>, Vec<u64>, u32), Vec<u64>);
+
     /// [`solve_bits_with`] with the sweeps compiled for `arch`.
     fn solve_bits_on(
         problem: &ContactProblem,
@@ -681,7 +704,18 @@ mod tests {
         settings: PgsSettings,
         stop: &SolverSettings,
         arch: pulp::Arch,
-    ) -> ((Vec<u64>, Vec<u64>, u32), Vec<u64>) {
+    ) -> SolveBits {
+        solve_bits_and_threads(problem, start, settings, stop, arch).0
+    }
+
+    /// [`solve_bits_on`], and the threads the sweep ran on ([`PgsSolver::threads_used`]).
+    fn solve_bits_and_threads(
+        problem: &ContactProblem,
+        start: &[Impulse],
+        settings: PgsSettings,
+        stop: &SolverSettings,
+        arch: pulp::Arch,
+    ) -> (SolveBits, usize) {
         let mut solver = PgsSolver::with_settings(settings);
         solver.arch = arch;
         let mut imp = start.to_vec();
@@ -706,7 +740,18 @@ mod tests {
                 .collect(),
             report.iterations,
         );
-        (bits, l2)
+        ((bits, l2), solver.threads_used())
+    }
+
+    /// The cores this process may use; a machine with one core cannot show that threads
+    /// agree, so under `CI=true` (whose machines have two or more) that is a failure.
+    fn cores() -> usize {
+        let cores = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
+        assert!(
+            cores >= 2 || std::env::var("CI").as_deref() != Ok("true"),
+            "CI=true on a machine with {cores} core: no second thread can run"
+        );
+        cores
     }
 
     /// The pile's largest island and the pyramid's (2-point manifolds, swept one at a time
@@ -809,32 +854,47 @@ mod tests {
                     report,
                 );
                 solver.sync_rows();
-                run
+                assert_eq!(run.2, threads, "threads that ran");
+                (run.0, run.1)
             },
         );
     }
 
     #[test]
-    fn chunked_sweep_is_bit_identical_for_one_two_and_four_threads() {
-        for problem in pile_and_pyramid() {
-            let start = loaded_start(&problem);
+    fn chunked_sweep_is_bit_identical_on_one_two_and_more_threads_than_cores() {
+        // One batch a chunk, so that the pile's colours have chunks for several threads; the
+        // thread counts asked for are 1, 2 and one more than the cores (capped at the cores).
+        // The pyramid's manifolds all have two points (no batches): thread 0 sweeps them.
+        let cores = cores();
+        for (k, problem) in pile_and_pyramid().iter().enumerate() {
+            let start = loaded_start(problem);
             for stop in tight_stops() {
                 let norm = stop.norm;
-                let unchunked = solve_bits_with(&problem, &start, PgsSettings::default(), &stop);
-                let runs: Vec<_> = [1, 2, 4]
+                let unchunked = solve_bits_with(problem, &start, PgsSettings::default(), &stop);
+                let runs: Vec<_> = [1, 2, cores + 1]
                     .map(|threads| {
                         let settings = PgsSettings {
                             threads,
                             parallel_min_points: 0,
                             domains: 0,
+                            chunk: 1,
                             ..PgsSettings::default()
                         };
-                        solve_bits_with(&problem, &start, settings, &stop)
+                        let (bits, used) = solve_bits_and_threads(
+                            problem,
+                            &start,
+                            settings,
+                            &stop,
+                            pulp::Arch::new(),
+                        );
+                        let expected = if k == 0 { threads.min(cores) } else { 1 };
+                        assert_eq!(used, expected, "problem {k}: {threads} threads asked for");
+                        bits
                     })
                     .into();
                 assert!(runs[0].0.2 > 1, "ran {} iterations", runs[0].0.2);
                 assert_eq!(runs[0], runs[1], "{norm:?}: 1 and 2 threads");
-                assert_eq!(runs[0], runs[2], "{norm:?}: 1 and 4 threads");
+                assert_eq!(runs[0], runs[2], "{norm:?}: 1 and {cores} threads");
                 if norm != ResidualNorm::L2 {
                     // Only Σ Δλ² is summed in chunk order.
                     assert_eq!(runs[0].0, unchunked.0, "{norm:?}: chunked and unchunked");
@@ -844,13 +904,38 @@ mod tests {
     }
 
     #[test]
+    fn more_threads_than_cores_run_on_the_cores() {
+        // The chunked plan (one batch a chunk) and the domain plan (8 domains: 4 side by
+        // side) asked for 64 threads run on the cores, or on the work there is if less.
+        let cores = cores();
+        let problem = pile_problem();
+        let start = loaded_start(&problem);
+        for (domains, most) in [(0, usize::MAX), (8, 4)] {
+            let settings = PgsSettings {
+                threads: 64,
+                parallel_min_points: 0,
+                domains,
+                chunk: 1,
+                ..PgsSettings::default()
+            };
+            let stop = SolverSettings::default();
+            let (_, used) =
+                solve_bits_and_threads(&problem, &start, settings, &stop, pulp::Arch::new());
+            assert_eq!(used, cores.min(most), "{domains} domains");
+        }
+    }
+
+    #[test]
     fn detected_instruction_set_and_baseline_give_the_same_bits() {
         // The detected set (AVX2 + FMA on most x86-64 machines) against the baseline build of
         // the same loops: plain, chunked on one thread (whole loop dispatched) and on two (each
         // item dispatched), both sweep variants (`CONTACT` or not).
         let detected = pulp::Arch::new();
-        for problem in pile_and_pyramid() {
+        let cores = cores();
+        for (k, problem) in pile_and_pyramid().into_iter().enumerate() {
             let start = loaded_start(&problem);
+            // (threads, parallel_from, domains); the chunked plans one batch a chunk, so that
+            // two threads share the pile's colours.
             let plans = [
                 (1, usize::MAX, 0),
                 (1, 0, 0),
@@ -869,11 +954,23 @@ mod tests {
                         threads,
                         parallel_min_points,
                         domains,
+                        chunk: 1,
                         ..PgsSettings::default()
                     };
-                    let baseline =
-                        solve_bits_on(&problem, &start, settings, &stop, pulp::Arch::Scalar);
-                    let fast = solve_bits_on(&problem, &start, settings, &stop, detected);
+                    let (baseline, on_baseline) = solve_bits_and_threads(
+                        &problem,
+                        &start,
+                        settings,
+                        &stop,
+                        pulp::Arch::Scalar,
+                    );
+                    let (fast, on_detected) =
+                        solve_bits_and_threads(&problem, &start, settings, &stop, detected);
+                    if k == 0 {
+                        // The pile: the plans on two threads ran on two.
+                        let expected = threads.min(cores);
+                        assert_eq!((on_baseline, on_detected), (expected, expected));
+                    }
                     assert!(baseline.0.2 > 1, "ran {} iterations", baseline.0.2);
                     assert_eq!(
                         baseline, fast,
@@ -964,7 +1061,9 @@ mod tests {
             );
             let run = d.solve(threads, solver.arch, stop, report);
             d.write_back(&mut solver.rows, &mut solver.vel);
-            run
+            // No more threads than the 4 even domains.
+            assert_eq!(run.2, threads.min(4), "threads that ran");
+            (run.0, run.1)
         });
     }
 

@@ -80,7 +80,7 @@ enum Item<'a> {
 /// Runs stage 3's loop in the chunked plan, `chunk` batches a chunk ([`CHUNK`] in the
 /// solver), on up to `threads` threads (≥ 1; no more than the cores, nor than the widest
 /// colour has chunks). Returns the iterations run and the last verdict, as the one-thread
-/// loop does; `report` gets the residual of every iteration. The sweeps run compiled for
+/// loop does, and the threads it ran on; `report` gets the residual of every iteration. The sweeps run compiled for
 /// `arch`: on one thread the whole loop, on several each work item (a chunk of batches or a
 /// colour's one-at-a-time manifolds).
 pub(crate) fn solve_chunked(
@@ -90,7 +90,7 @@ pub(crate) fn solve_chunked(
     arch: pulp::Arch,
     settings: &SolverSettings,
     report: &mut SolveReport,
-) -> (u32, Verdict) {
+) -> (u32, Verdict, usize) {
     // No more threads than the widest colour has chunks: the others would only wait.
     let widest = s
         .segments
@@ -99,7 +99,7 @@ pub(crate) fn solve_chunked(
     let threads = threads.min(widest.max().unwrap_or(1)).max(1);
     let (mut items, counts) = work_items(s.batches, s.segments, chunk);
     if threads == 1 {
-        return arch.dispatch(OneThread {
+        let (it, verdict) = arch.dispatch(OneThread {
             items: &mut items,
             serial: s.serial,
             rows: s.rows,
@@ -107,6 +107,7 @@ pub(crate) fn solve_chunked(
             settings,
             report,
         });
+        return (it, verdict, 1);
     }
     let starts = phase_starts(counts);
     let slots: [Vec<Cell3>; 2] =
@@ -165,7 +166,7 @@ pub(crate) fn solve_chunked(
             judge(settings, k as u32 + 1, sweep, Some(report)),
         );
     }
-    last
+    (last.0, last.1, threads)
 }
 
 /// The work items colour by colour — each colour's batches in chunks of `chunk`, then its

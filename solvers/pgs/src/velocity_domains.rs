@@ -80,14 +80,14 @@ impl Domains {
 
     /// Stage 3's loop in the domain plan on up to `threads` threads (≥ 1; no more than half
     /// the domains, rounded up). Returns the iterations run and the last verdict, as the one-thread loop
-    /// does; `report` gets the residual of every iteration.
+    /// does, and the threads it ran on; `report` gets the residual of every iteration.
     pub(crate) fn solve(
         &mut self,
         threads: usize,
         arch: pulp::Arch,
         settings: &SolverSettings,
         report: &mut SolveReport,
-    ) -> (u32, Verdict) {
+    ) -> (u32, Verdict, usize) {
         let contact = settings.norm == ResidualNorm::Contact;
         let mut parts: Vec<VelocityPart<'_>> = self
             .parts
@@ -100,7 +100,7 @@ impl Domains {
             .collect();
         let stop =
             |it: u32, sweep: &Sweep| judge(settings, it + 1, sweep, None) != Verdict::Continue;
-        let sweeps = sweep_parts(
+        let (sweeps, threads) = sweep_parts(
             &mut parts,
             &self.partition,
             threads,
@@ -115,7 +115,7 @@ impl Domains {
                 judge(settings, k as u32 + 1, sweep, Some(report)),
             );
         }
-        last
+        (last.0, last.1, threads)
     }
 }
 

@@ -37,6 +37,7 @@ impl PgsSolver {
         }
         if !small.is_empty() {
             self.solve_small(settings, islands, &small);
+            self.threads_used = self.threads_used.max(1);
         }
         self.small_islands = small;
     }

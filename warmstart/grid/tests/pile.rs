@@ -227,18 +227,36 @@ fn registry_grid_runs_a_world() {
     deepcontact_warmstart::register(&mut registry);
     register(&mut registry);
     // `inner=builtin` keeps this independent of the oracle; the default inner is `copy`.
-    let mut provider = registry
-        .build_provider("grid:inner=builtin,transfer=bilinear")
-        .unwrap();
+    let mut provider = Watched {
+        inner: registry
+            .build_provider("grid:inner=builtin,transfer=bilinear")
+            .unwrap(),
+        calls: 0,
+        points: 0,
+        loaded: 0,
+    };
     let mut world = scene::pile(1, 100)
         .unwrap()
         .build(WorldSettings::default())
         .unwrap();
     let (mut v, mut pos) = (PgsSolver::new(), PgsPositionSolver::new());
-    for _ in 0..20 {
-        let report = world.step(provider.as_mut(), &mut v, &mut pos).unwrap();
+    // The first contact comes at step 32; 45 steps give the provider 13 steps of a pile.
+    for _ in 0..45 {
+        let report = world.step(&mut provider, &mut v, &mut pos).unwrap();
         assert_eq!(report.fallbacks, 0);
     }
+    let Watched {
+        calls,
+        points,
+        loaded,
+        ..
+    } = provider;
+    assert!(calls >= 13, "the provider started {calls} islands");
+    // After the first contact step the carried impulses, through the grid, load most points.
+    assert!(
+        loaded * 2 > points,
+        "{loaded} of {points} points started with a normal impulse > 0"
+    );
     assert!(
         registry
             .build_provider("grid:inner=builtin,kernel=gaussian,sigma=0.2")
@@ -255,4 +273,39 @@ fn registry_grid_runs_a_world() {
             .is_err()
     );
     assert!(registry.build_provider("grid:inner=builtin,res=0").is_err());
+}
+
+/// A provider watched from outside: the islands it started, their points, and the points it
+/// started with a positive normal impulse.
+struct Watched {
+    inner: Box<dyn WarmStart>,
+    calls: usize,
+    points: usize,
+    loaded: usize,
+}
+
+impl WarmStart for Watched {
+    fn name(&self) -> &str {
+        self.inner.name()
+    }
+
+    fn warm_start(
+        &mut self,
+        ctx: &WarmStartContext<'_>,
+        out: &mut [Impulse],
+    ) -> Result<(), WarmStartError> {
+        self.inner.warm_start(ctx, out)?;
+        self.calls += 1;
+        self.points += out.len();
+        self.loaded += out.iter().filter(|i| i.normal > 0.0).count();
+        Ok(())
+    }
+
+    fn observe(&mut self, ctx: &WarmStartContext<'_>, seen: &deepcontact_core::Observation<'_>) {
+        self.inner.observe(ctx, seen);
+    }
+
+    fn reset(&mut self) {
+        self.inner.reset();
+    }
 }

@@ -25,13 +25,25 @@ fn backend() -> Backend {
     Backend::default_for_build()
 }
 
-/// An ONNX Runtime-only build without `ORT_DYLIB_PATH` cannot run a model: skip with a note.
+/// An ONNX Runtime-only build without `ORT_DYLIB_PATH` cannot run a model: skip with a note,
+/// except under `CI=true`, where `.ci/onnxruntime.sh` sets it (a skip there would pass
+/// without testing ONNX Runtime).
 fn cannot_run() -> bool {
     let skip = backend() == Backend::OnnxRuntime && std::env::var_os("ORT_DYLIB_PATH").is_none();
     if skip {
+        fail_under_ci();
         eprintln!("note: ORT_DYLIB_PATH is not set; skipping (see .ci/onnxruntime.sh)");
     }
     skip
+}
+
+/// Panics under `CI=true`: a test that needs ONNX Runtime found no `ORT_DYLIB_PATH`.
+fn fail_under_ci() {
+    assert!(
+        std::env::var("CI").as_deref() != Ok("true"),
+        "CI=true but ORT_DYLIB_PATH is not set: the ONNX Runtime tests would be skipped \
+         (run them through .ci/onnxruntime.sh)"
+    );
 }
 
 fn load(model: &str, card: Option<&str>) -> Result<OnnxModel, OnnxError> {
@@ -355,6 +367,7 @@ fn tract_agrees_with_onnxruntime_reference() {
 #[test]
 fn onnxruntime_agrees_with_reference() {
     if std::env::var_os("ORT_DYLIB_PATH").is_none() {
+        fail_under_ci();
         eprintln!(
             "note: ORT_DYLIB_PATH is not set; skipping the ONNX Runtime backend test (see .ci/onnxruntime.sh)"
         );

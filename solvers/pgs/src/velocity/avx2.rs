@@ -348,7 +348,13 @@ mod tests {
 
     #[test]
     fn avx2_pairs_are_bit_identical_to_the_portable_loop_on_random_colours() {
+        // CI's machines have AVX2: there a missing AVX2 is a failure, not a pass that
+        // compared nothing.
         let Some(simd) = V3::try_new() else {
+            assert!(
+                std::env::var("CI").as_deref() != Ok("true"),
+                "CI=true on a machine without AVX2 + FMA: the AVX2 kernel is not tested"
+            );
             eprintln!("no AVX2 on this machine: nothing to compare");
             return;
         };
