@@ -15,6 +15,45 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ExperimentError> {
     })
 }
 
+/// Creates `dir` and writes each `(name, bytes)` into it with [`write_atomic`]; returns the
+/// paths written, in order.
+pub fn write_files<'a>(
+    dir: &Path,
+    files: impl IntoIterator<Item = (&'a str, Vec<u8>)>,
+) -> Result<Vec<std::path::PathBuf>, ExperimentError> {
+    std::fs::create_dir_all(dir).map_err(|e| ExperimentError::io(dir, e))?;
+    files
+        .into_iter()
+        .map(|(name, bytes)| {
+            let path = dir.join(name);
+            write_atomic(&path, &bytes)?;
+            Ok(path)
+        })
+        .collect()
+}
+
+/// `value` as pretty JSON with a final newline; `what` names the file in the error.
+pub fn json_bytes(value: &serde_json::Value, what: &str) -> Result<Vec<u8>, ExperimentError> {
+    serde_json::to_string_pretty(value)
+        .map(|json| (json + "\n").into_bytes())
+        .map_err(|e| ExperimentError::Invalid(format!("{what}: {e}")))
+}
+
+/// `label` with every character but ASCII letters, digits, `-` and `_` replaced by `_`: a
+/// file name (figures named after a solver or scene spec).
+pub fn file_safe(label: &str) -> String {
+    label
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
 /// The temporary name `path` is written under before the rename.
 pub fn temporary_path(path: &Path) -> std::path::PathBuf {
     let name = path

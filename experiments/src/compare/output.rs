@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 
 use super::{Curve, Results, Summary, curves, figures, summarize};
-use crate::atomic::write_atomic;
+use crate::atomic::{file_safe, json_bytes, write_files};
 use crate::{ExperimentError, plots};
 
 /// Column names of `steps.csv`.
@@ -244,20 +244,16 @@ pub fn write_outputs(
         .collect();
     let json = serde_json::json!({ "config": &results.config, "threads": results.threads,
         "wall_seconds": results.wall_seconds, "summary": &rows, "diagnostics": diagnostics });
-    let json = serde_json::to_string_pretty(&json)
-        .map_err(|e| ExperimentError::Invalid(format!("summary.json: {e}")))?;
-    let mut files = Vec::new();
-    for (name, text) in [
-        ("steps.csv", steps_csv(results)?),
-        ("curves.csv", curves_csv(&curves)?),
-        ("summary.csv", summary_csv(&rows)?),
-        ("summary.md", summary_md.clone().into_bytes()),
-        ("summary.json", (json + "\n").into_bytes()),
-    ] {
-        let path = dir.join(name);
-        write_atomic(&path, &text)?;
-        files.push(path);
-    }
+    let mut files = write_files(
+        dir,
+        [
+            ("steps.csv", steps_csv(results)?),
+            ("curves.csv", curves_csv(&curves)?),
+            ("summary.csv", summary_csv(&rows)?),
+            ("summary.md", summary_md.clone().into_bytes()),
+            ("summary.json", json_bytes(&json, "summary.json")?),
+        ],
+    )?;
     if plots {
         let fig_dir = dir.join("figures");
         std::fs::create_dir_all(&fig_dir).map_err(|e| ExperimentError::io(&fig_dir, e))?;
@@ -273,17 +269,4 @@ pub fn write_outputs(
         }
     }
     Ok(Outputs { files, summary_md })
-}
-
-fn file_safe(label: &str) -> String {
-    label
-        .chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect()
 }

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 
 use super::{Budget, SuiteResults, SuiteRow, suite_rows};
-use crate::atomic::write_atomic;
+use crate::atomic::{file_safe, json_bytes, write_files};
 use crate::plots::{self, Figure, Panel, Scale, Series};
 use crate::{ExperimentError, csv_bytes};
 
@@ -210,24 +210,19 @@ pub fn write_suite(
     dir: &Path,
     plots: bool,
 ) -> Result<(Vec<PathBuf>, String), ExperimentError> {
-    std::fs::create_dir_all(dir).map_err(|e| ExperimentError::io(dir, e))?;
     let rows = suite_rows(results);
     let md = suite_md(results, &rows);
     let json = serde_json::json!({ "config": &results.config, "wall_seconds": results.wall_seconds,
         "summary": &rows });
-    let json = serde_json::to_string_pretty(&json)
-        .map_err(|e| ExperimentError::Invalid(format!("summary.json: {e}")))?;
-    let mut files = Vec::new();
-    for (name, bytes) in [
-        ("steps.csv", suite_steps_csv(results)?),
-        ("summary.csv", csv_bytes(&rows)?),
-        ("summary.md", md.clone().into_bytes()),
-        ("summary.json", (json + "\n").into_bytes()),
-    ] {
-        let path = dir.join(name);
-        write_atomic(&path, &bytes)?;
-        files.push(path);
-    }
+    let mut files = write_files(
+        dir,
+        [
+            ("steps.csv", suite_steps_csv(results)?),
+            ("summary.csv", csv_bytes(&rows)?),
+            ("summary.md", md.clone().into_bytes()),
+            ("summary.json", json_bytes(&json, "summary.json")?),
+        ],
+    )?;
     if plots {
         let fig_dir = dir.join("figures");
         std::fs::create_dir_all(&fig_dir).map_err(|e| ExperimentError::io(&fig_dir, e))?;
@@ -236,17 +231,4 @@ pub fn write_suite(
         }
     }
     Ok((files, md))
-}
-
-fn file_safe(label: &str) -> String {
-    label
-        .chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || c == '-' {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect()
 }
