@@ -20,7 +20,9 @@ pub fn scene_for(
     Ok(scene::by_name(text, seed, bodies)?)
 }
 
-/// Every provider and solver this build knows: `pgs` (deepcontact-pgs), `psor` and `newton`
+/// Every scene, provider and solver this build knows: the scenes of
+/// [`deepcontact_core::scene`] (`pile`, `box-pile`, `pyramid`, ...), `pgs` (deepcontact-pgs),
+/// `psor` and `newton`
 /// (deepcontact-lcp), the soft step `soft` (deepcontact-soft), the baselines (deepcontact-warmstart), `grid` (deepcontact-grid), the
 /// contact-graph network `graph` and `graph-file:` (deepcontact-graph) and,
 /// with the `onnx` feature, the CNNs `pressure`, `peak` and `onnx:` (deepcontact-onnx).
@@ -31,6 +33,7 @@ pub fn scene_for(
 /// assert!(registry.build_solver("psor:omega=1.2").is_ok());
 /// assert!(registry.build_solver("soft:substeps=4,relax=1").is_ok());
 /// assert!(registry.provider_info("copy").unwrap().oracle);
+/// assert!(registry.build_scene("box-pile:bodies=50", 7).is_ok());
 /// ```
 pub fn full_registry() -> Registry {
     let mut registry = Registry::empty();

@@ -1,5 +1,7 @@
-//! The registry: names → factories of warm-start providers and velocity solvers, with the
-//! metadata callers need (is a provider an oracle, does it need the world, is it learned).
+//! The registry: names → factories of warm-start providers, velocity solvers and scenes, with
+//! the metadata callers need (is a provider an oracle, does it need the world, is it learned).
+//! Scenes are built for a seed ([`Registry::build_scene`]); [`crate::scene::register`] adds
+//! the core's.
 //!
 //! Each implementation crate registers its own entries with a `register(&mut Registry)`
 //! function (`deepcontact_pgs::register`, `deepcontact_lcp::register`,
