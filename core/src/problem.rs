@@ -43,7 +43,7 @@
 
 use crate::contact::ContactId;
 use crate::error::CoreError;
-use crate::math::{Real, Vector, cross, cross_sv};
+use crate::math::{Real, Vector, Velocity, cross, cross_sv};
 
 /// A body as the solver sees it (local to one problem).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -258,6 +258,16 @@ impl ContactProblem {
         );
         (b.linear_velocity + cross_sv(b.angular_velocity, &p.r_b))
             - (a.linear_velocity + cross_sv(a.angular_velocity, &p.r_a))
+    }
+
+    /// [`Self::relative_velocity`] with the bodies moving at `velocities` (one per body of the
+    /// problem, e.g. a solve's result) instead of the problem's own, m/s; `None` when `i` or
+    /// one of its bodies is out of range.
+    pub fn relative_velocity_with(&self, i: usize, velocities: &[Velocity]) -> Option<Vector> {
+        let p = self.points.get(i)?;
+        let a = velocities.get(p.body_a as usize)?;
+        let b = velocities.get(p.body_b as usize)?;
+        Some((b.linear + cross_sv(b.angular, &p.r_b)) - (a.linear + cross_sv(a.angular, &p.r_a)))
     }
 
     /// Empties the problem, keeping its allocations.

@@ -140,18 +140,13 @@ impl StepReport {
         velocities: &[crate::Velocity],
         solved: &[crate::Impulse],
     ) {
-        let cross = |w: Real, r: &crate::Vector| crate::Vector::new(-w * r.y, w * r.x);
-        for (p, imp) in problem.points.iter().zip(solved) {
+        for (i, (p, imp)) in problem.points.iter().zip(solved).enumerate() {
             let depth = (-p.separation).max(0.0);
             self.penetration_mean += depth;
             self.penetration_max = self.penetration_max.max(depth);
-            let (Some(a), Some(b)) = (
-                velocities.get(p.body_a as usize),
-                velocities.get(p.body_b as usize),
-            ) else {
+            let Some(dv) = problem.relative_velocity_with(i, velocities) else {
                 continue;
             };
-            let dv = (b.linear + cross(b.angular, &p.r_b)) - (a.linear + cross(a.angular, &p.r_a));
             let vn = dv.dot(&p.normal);
             let error = if imp.normal > 0.0 {
                 (vn - p.velocity_bias).abs()
@@ -181,5 +176,63 @@ impl StepReport {
     /// Residual at the end of the step's velocity solve (last value of the curve).
     pub fn final_residual(&self) -> Real {
         self.residual_curve.last().copied().unwrap_or(0.0)
+    }
+}
+
+#[cfg(test)]
+mod contact_error_tests {
+    use super::*;
+    use crate::problem::{ContactProblem, PointDesc, ProblemBody};
+    use crate::{Impulse, Vector, Velocity};
+
+    #[test]
+    fn contact_errors_measure_penetration_and_the_normal_velocity_left() {
+        // A ball 2 mm into the ground: one point, normal +y from the ground (A) to the ball (B).
+        let mut p = ContactProblem::new();
+        let ground = p.add_body(ProblemBody::fixed(Vector::new(0.0, -0.5)));
+        let ball = p.add_body(ProblemBody::dynamic(
+            Vector::new(0.0, 0.498),
+            0.0,
+            Vector::zeros(),
+            0.0,
+            1.0,
+            1.0,
+        ));
+        p.begin_manifold();
+        let desc = PointDesc::new(ground, ball, Vector::zeros(), Vector::new(0.0, 1.0));
+        p.add_point(&desc.separation(-0.002)).unwrap();
+        let still = [Velocity::default(); 2];
+        let falling = [
+            Velocity::default(),
+            Velocity::new(Vector::new(0.0, -0.3), 0.0),
+        ];
+        let cases = [
+            // Pushing and at rest: no error. Pushing and approaching: the approach.
+            (Impulse::new(1.0, 0.0), still, 0.0),
+            (Impulse::new(1.0, 0.0), falling, 0.3),
+            // Idle and approaching: the approach; idle and separating: none.
+            (Impulse::ZERO, falling, 0.3),
+            (
+                Impulse::ZERO,
+                [
+                    Velocity::default(),
+                    Velocity::new(Vector::new(0.0, 0.3), 0.0),
+                ],
+                0.0,
+            ),
+        ];
+        for (impulse, velocities, error) in cases {
+            let mut r = StepReport::default();
+            r.add_island(&SolveReport::default(), &[impulse], &[impulse]);
+            r.add_contact_errors(&p, &velocities, &[impulse]);
+            r.finish_islands();
+            assert!(
+                (r.normal_velocity_error_max - error).abs() < 1e-12,
+                "{impulse:?}"
+            );
+            assert!((r.normal_velocity_error_mean - error).abs() < 1e-12);
+            assert!((r.penetration_max - 0.002).abs() < 1e-12);
+            assert!((r.penetration_mean - 0.002).abs() < 1e-12);
+        }
     }
 }

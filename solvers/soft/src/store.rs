@@ -1,7 +1,7 @@
 //! **Store**: the step's impulses, velocities and displacements written out (Box2D v3's
 //! `b2StoreImpulses`), and the natural-map residual of the result.
 
-use deepcontact_core::math::{Pose, Real, Vector, Velocity, cross_sv};
+use deepcontact_core::math::{Pose, Real, Vector, Velocity};
 use deepcontact_core::{ContactProblem, Impulse};
 
 use crate::prepare::Island;
@@ -36,13 +36,10 @@ pub(crate) fn natural_residual(
     velocities: &[Velocity],
 ) -> Real {
     let mut res: Real = 0.0;
-    for (p, imp) in problem.points.iter().zip(impulses) {
-        let (a, b) = (
-            &velocities[p.body_a as usize],
-            &velocities[p.body_b as usize],
-        );
-        let dv: Vector =
-            (b.linear + cross_sv(b.angular, &p.r_b)) - (a.linear + cross_sv(a.angular, &p.r_a));
+    for (i, (p, imp)) in problem.points.iter().zip(impulses).enumerate() {
+        let dv: Vector = problem
+            .relative_velocity_with(i, velocities)
+            .unwrap_or_default();
         let vn = dv.dot(&p.normal);
         let vt = dv.dot(&p.tangent());
         let rn = imp.normal - (imp.normal - p.normal_mass * (vn - p.velocity_bias)).max(0.0);
