@@ -158,6 +158,38 @@ fn count(params: &mut Params<'_>, key: &'static str, default: usize) -> Result<u
 
 /// Registers the scenes of the table in the [module docs](self).
 pub fn register(registry: &mut Registry) {
+    register_piles(registry);
+    register_stacked(registry);
+    registry.register_scene(
+        "resting_ball",
+        "one ball (r 0.5 m) resting on a ground box",
+        |_, _| Ok(resting_ball()),
+    );
+    registry.register_scene(
+        "thesis",
+        "the original code's initial world of the seed (seeds 12345-12354 shipped)",
+        |_, seed| built("thesis", crate::scene_file::thesis_world(seed)),
+    );
+    registry.register_scene(
+        "file",
+        "circles from a scene file in the thesis's 15 m box; path=FILE",
+        |p, seed| {
+            let path = p
+                .string("path")
+                .ok_or_else(|| p.invalid("path", "", "a scene file is required: file:path=FILE"))?
+                .to_string();
+            built(
+                "file",
+                crate::scene_file::load(&path).and_then(|circles| {
+                    crate::scene_file::pile_from_circles(&circles, seed, 15.0, &path)
+                }),
+            )
+        },
+    );
+}
+
+/// `pile`, `box-pile` and `polygon-pile`.
+fn register_piles(registry: &mut Registry) {
     registry.register_scene(
         "pile",
         "the thesis's circles (r 0.5 m) in a 15 m box scaled by sqrt(bodies/100); bodies=100, friction=0.5",
@@ -204,6 +236,10 @@ pub fn register(registry: &mut Registry) {
             built(name, make(seed, &params))
         });
     }
+}
+
+/// `pyramid`, `stack` and `ratio-stack`.
+fn register_stacked(registry: &mut Registry) {
     for (name, help, key, defaults, make) in [
         (
             "pyramid",
@@ -241,32 +277,6 @@ pub fn register(registry: &mut Registry) {
             built(name, make(seed, &params))
         });
     }
-    registry.register_scene(
-        "resting_ball",
-        "one ball (r 0.5 m) resting on a ground box",
-        |_, _| Ok(resting_ball()),
-    );
-    registry.register_scene(
-        "thesis",
-        "the original code's initial world of the seed (seeds 12345-12354 shipped)",
-        |_, seed| built("thesis", crate::scene_file::thesis_world(seed)),
-    );
-    registry.register_scene(
-        "file",
-        "circles from a scene file in the thesis's 15 m box; path=FILE",
-        |p, seed| {
-            let path = p
-                .string("path")
-                .ok_or_else(|| p.invalid("path", "", "a scene file is required: file:path=FILE"))?
-                .to_string();
-            built(
-                "file",
-                crate::scene_file::load(&path).and_then(|circles| {
-                    crate::scene_file::pile_from_circles(&circles, seed, 15.0, &path)
-                }),
-            )
-        },
-    );
 }
 
 #[cfg(test)]
