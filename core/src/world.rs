@@ -249,6 +249,47 @@ struct IslandWork {
 }
 
 impl IslandWork {
+    /// Solves `problem` from this island's warm start with `solver`, the error kept in
+    /// [`Self::error`]: under a `budget`, exactly the passes the provider left
+    /// ([`budget_settings`]), else `settings`; a solver that `owns_positions` also returns
+    /// the bodies' displacements.
+    fn solve(
+        &mut self,
+        solver: &mut dyn VelocitySolver,
+        problem: &ContactProblem,
+        settings: &SolverSettings,
+        budget: Option<u32>,
+        owns_positions: bool,
+    ) {
+        self.reset_buffers(problem);
+        let settings = match budget {
+            Some(k) => budget_settings(settings, k, self.passes_spent),
+            None => *settings,
+        };
+        let result = if owns_positions {
+            self.displacements.clear();
+            self.displacements
+                .resize(problem.bodies.len(), Pose::default());
+            solver.solve_with_positions(
+                problem,
+                &settings,
+                &mut self.impulses,
+                &mut self.velocities,
+                &mut self.displacements,
+                &mut self.report,
+            )
+        } else {
+            solver.solve(
+                problem,
+                &settings,
+                &mut self.impulses,
+                &mut self.velocities,
+                &mut self.report,
+            )
+        };
+        self.error = result.err();
+    }
+
     /// The solve's buffers made ready for `problem`: the impulses start from the warm start,
     /// one velocity slot per body.
     fn reset_buffers(&mut self, problem: &ContactProblem) {
@@ -637,33 +678,7 @@ impl World {
         let owns_positions = s.owns_positions;
         let solve =
             |solver: &mut dyn VelocitySolver, problem: &ContactProblem, w: &mut IslandWork| {
-                w.reset_buffers(problem);
-                let island_settings = match budget {
-                    Some(k) => budget_settings(settings, k, w.passes_spent),
-                    None => *settings,
-                };
-                w.error = if owns_positions {
-                    w.displacements.clear();
-                    w.displacements
-                        .resize(problem.bodies.len(), Pose::default());
-                    solver.solve_with_positions(
-                        problem,
-                        &island_settings,
-                        &mut w.impulses,
-                        &mut w.velocities,
-                        &mut w.displacements,
-                        &mut w.report,
-                    )
-                } else {
-                    solver.solve(
-                        problem,
-                        &island_settings,
-                        &mut w.impulses,
-                        &mut w.velocities,
-                        &mut w.report,
-                    )
-                }
-                .err();
+                w.solve(solver, problem, settings, budget, owns_positions);
             };
         let threads = self.settings.island_threads.min(s.problems.len());
         // Side by side only when no island outweighs a thread's share of the points (else
