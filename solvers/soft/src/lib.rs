@@ -177,17 +177,19 @@ impl SoftSolver {
         (self.dt, self.gravity)
     }
 
-    /// The whole soft step of one island; see [`VelocitySolver::solve_with_positions`].
-    fn solve_step(
-        &mut self,
+    /// The checks before a step: the shared prologue ([`begin_solve`]), the norm, the
+    /// options, the displacement buffer's length and the step length of [`Self::begin_step`].
+    ///
+    /// [`begin_solve`]: deepcontact_core::solver::begin_solve
+    fn begin(
+        &self,
         problem: &ContactProblem,
         settings: &SolverSettings,
-        impulses: &mut [Impulse],
-        velocities: &mut [Velocity],
-        displacements: &mut [Pose],
+        impulses: &[Impulse],
+        velocities: &[Velocity],
+        displacements: &[Pose],
         report: &mut SolveReport,
     ) -> Result<(), CoreError> {
-        let t0 = Instant::now();
         deepcontact_core::solver::begin_solve(
             problem,
             settings,
@@ -212,6 +214,28 @@ impl SoftSolver {
                 reason: "must be finite and > 0",
             });
         }
+        Ok(())
+    }
+
+    /// The whole soft step of one island; see [`VelocitySolver::solve_with_positions`].
+    fn solve_step(
+        &mut self,
+        problem: &ContactProblem,
+        settings: &SolverSettings,
+        impulses: &mut [Impulse],
+        velocities: &mut [Velocity],
+        displacements: &mut [Pose],
+        report: &mut SolveReport,
+    ) -> Result<(), CoreError> {
+        let t0 = Instant::now();
+        self.begin(
+            problem,
+            settings,
+            impulses,
+            velocities,
+            displacements,
+            report,
+        )?;
         let schedule = Schedule::new(self.settings.substeps, self.settings.relax, settings);
         let n = Real::from(schedule.substeps);
         let h = self.dt / n;
@@ -265,21 +289,7 @@ impl SoftSolver {
         restitution::restitution(&mut self.island);
         // Stage 8: store.
         store::store(&self.island, impulses, velocities, displacements);
-        let finite = impulses.iter().all(Impulse::is_finite)
-            && velocities.iter().zip(displacements.iter()).all(|(v, d)| {
-                v.linear.x.is_finite()
-                    && v.linear.y.is_finite()
-                    && v.angular.is_finite()
-                    && d.position.x.is_finite()
-                    && d.position.y.is_finite()
-                    && d.angle.is_finite()
-            });
-        if !finite {
-            return Err(CoreError::Solver {
-                solver: "soft".into(),
-                reason: "non-finite impulse, velocity or displacement".into(),
-            });
-        }
+        check_finite(impulses, velocities, displacements)?;
         report.iterations = schedule.passes();
         report.natural_residual = store::natural_residual(problem, impulses, velocities);
         report.converged = settings.converged(
@@ -290,6 +300,31 @@ impl SoftSolver {
         );
         report.seconds = t0.elapsed().as_secs_f64();
         Ok(())
+    }
+}
+
+/// A typed error unless every impulse, velocity and displacement the step wrote is finite.
+fn check_finite(
+    impulses: &[Impulse],
+    velocities: &[Velocity],
+    displacements: &[Pose],
+) -> Result<(), CoreError> {
+    let finite = impulses.iter().all(Impulse::is_finite)
+        && velocities.iter().zip(displacements).all(|(v, d)| {
+            v.linear.x.is_finite()
+                && v.linear.y.is_finite()
+                && v.angular.is_finite()
+                && d.position.x.is_finite()
+                && d.position.y.is_finite()
+                && d.angle.is_finite()
+        });
+    if finite {
+        Ok(())
+    } else {
+        Err(CoreError::Solver {
+            solver: "soft".into(),
+            reason: "non-finite impulse, velocity or displacement".into(),
+        })
     }
 }
 
