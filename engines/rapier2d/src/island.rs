@@ -68,11 +68,31 @@ pub(crate) fn plan(
     body: &dyn Fn(Option<RigidBodyHandle>, ColliderHandle) -> ProblemBody,
     to_step: &dyn Fn(f32, f32) -> Impulse,
 ) -> Vec<IslandProblem> {
+    let manifolds = collect_manifolds(bodies, colliders, narrow_phase, prediction, dt, to_step);
+    islands_of(bodies, &manifolds)
+        .values()
+        .filter_map(|members| island_problem(&manifolds, members, body))
+        .collect()
+}
+
+/// Whether `h` is a dynamic body of `bodies`.
+fn is_dynamic(bodies: &RigidBodySet, h: Option<RigidBodyHandle>) -> bool {
+    h.and_then(|h| bodies.get(h))
+        .is_some_and(|rb| rb.is_dynamic())
+}
+
+/// The manifolds touching a dynamic body, with the points rapier will keep as solver
+/// contacts at this step's poses.
+fn collect_manifolds(
+    bodies: &RigidBodySet,
+    colliders: &ColliderSet,
+    narrow_phase: &NarrowPhase,
+    prediction: Real,
+    dt: Real,
+    to_step: &dyn Fn(f32, f32) -> Impulse,
+) -> Vec<Manifold> {
     let v = |p: rapier2d::math::Vector| Vector::new(Real::from(p.x), Real::from(p.y));
-    let dynamic = |h: Option<RigidBodyHandle>| {
-        h.and_then(|h| bodies.get(h))
-            .is_some_and(|rb| rb.is_dynamic())
-    };
+    let dynamic = |h: Option<RigidBodyHandle>| is_dynamic(bodies, h);
     let mut manifolds = Vec::new();
     for pair in narrow_phase.contact_pairs() {
         let (Some(co1), Some(co2)) = (colliders.get(pair.collider1), colliders.get(pair.collider2))
@@ -149,11 +169,17 @@ pub(crate) fn plan(
             });
         }
     }
-    // Islands: union-find over the dynamic bodies' slots in the body set.
+    manifolds
+}
+
+/// The manifolds of each island, by its root: union-find over the dynamic bodies' slots in
+/// the body set (static and kinematic bodies do not join islands).
+fn islands_of(bodies: &RigidBodySet, manifolds: &[Manifold]) -> BTreeMap<usize, Vec<usize>> {
+    let dynamic = |h: Option<RigidBodyHandle>| is_dynamic(bodies, h);
     let slot = |h: RigidBodyHandle| h.into_raw_parts().0 as usize;
     let slots = bodies.iter().map(|(h, _)| slot(h) + 1).max().unwrap_or(0);
     let mut parent: Vec<usize> = (0..slots).collect();
-    for m in &manifolds {
+    for m in manifolds {
         if let [Some(a), Some(b)] = m.bodies
             && dynamic(Some(a))
             && dynamic(Some(b))
@@ -175,51 +201,55 @@ pub(crate) fn plan(
             .or_default()
             .push(i);
     }
-    let mut out = Vec::with_capacity(by_root.len());
-    for members in by_root.values() {
-        let mut problem = ContactProblem::new();
-        let mut index: HashMap<(Option<RigidBodyHandle>, ColliderHandle), u32> = HashMap::new();
-        let mut carried = Vec::new();
-        let mut keys = Vec::new();
-        for &i in members {
-            let m = &manifolds[i];
-            // Bodies are shared by their manifolds (a body-less collider by its handle).
-            let ids = [0, 1].map(|k| {
-                let tag = (
-                    m.bodies[k],
-                    if m.bodies[k].is_some() {
-                        ColliderHandle::invalid()
-                    } else {
-                        m.colliders[k]
-                    },
-                );
-                *index
-                    .entry(tag)
-                    .or_insert_with(|| problem.add_body(body(m.bodies[k], m.colliders[k])))
-            });
-            for (j, p) in m.points.iter().enumerate() {
-                if j % 2 == 0 {
-                    problem.begin_manifold();
-                }
-                let desc = PointDesc::new(ids[0], ids[1], p.point, m.normal)
-                    .id(p.key.contact_id())
-                    .separation(p.dist)
-                    .friction(m.friction)
-                    .restitution(m.restitution, 1.0);
-                if problem.add_point(&desc).is_err() {
-                    continue;
-                }
-                carried.push(p.carried);
-                keys.push(p.key);
+    by_root
+}
+
+/// One island's problem from its `members` (indices into `manifolds`), `None` when no point
+/// was admitted.
+fn island_problem(
+    manifolds: &[Manifold],
+    members: &[usize],
+    body: &dyn Fn(Option<RigidBodyHandle>, ColliderHandle) -> ProblemBody,
+) -> Option<IslandProblem> {
+    let mut problem = ContactProblem::new();
+    let mut index: HashMap<(Option<RigidBodyHandle>, ColliderHandle), u32> = HashMap::new();
+    let mut carried = Vec::new();
+    let mut keys = Vec::new();
+    for &i in members {
+        let m = &manifolds[i];
+        // Bodies are shared by their manifolds (a body-less collider by its handle).
+        let ids = [0, 1].map(|k| {
+            let tag = (
+                m.bodies[k],
+                if m.bodies[k].is_some() {
+                    ColliderHandle::invalid()
+                } else {
+                    m.colliders[k]
+                },
+            );
+            *index
+                .entry(tag)
+                .or_insert_with(|| problem.add_body(body(m.bodies[k], m.colliders[k])))
+        });
+        for (j, p) in m.points.iter().enumerate() {
+            if j % 2 == 0 {
+                problem.begin_manifold();
             }
-        }
-        if !problem.is_empty() {
-            out.push(IslandProblem {
-                problem,
-                carried,
-                keys,
-            });
+            let desc = PointDesc::new(ids[0], ids[1], p.point, m.normal)
+                .id(p.key.contact_id())
+                .separation(p.dist)
+                .friction(m.friction)
+                .restitution(m.restitution, 1.0);
+            if problem.add_point(&desc).is_err() {
+                continue;
+            }
+            carried.push(p.carried);
+            keys.push(p.key);
         }
     }
-    out
+    (!problem.is_empty()).then_some(IslandProblem {
+        problem,
+        carried,
+        keys,
+    })
 }
