@@ -313,8 +313,11 @@ pub struct Results {
     pub warm_starts: Vec<String>,
     /// Runs ordered by solver, then warm start, then seed (the job order).
     pub runs: Vec<Run>,
-    /// Threads used.
+    /// Worker threads in the pool (`Config::threads`, 0 resolved to the core count).
     pub threads: usize,
+    /// Workers that ran at least one (solver, seed) job: at most `threads` and the job count.
+    /// It depends on scheduling, like the wall times, and is not written to the outputs.
+    pub workers_used: usize,
     /// Wall time of the whole experiment, seconds.
     pub wall_seconds: f64,
 }

@@ -71,17 +71,28 @@ pub fn run_experiment_until(
     }
 
     let t0 = Instant::now();
-    // `collect` keeps the job order whatever thread ran which job.
-    let jobs: Vec<Result<Vec<Run>, ExperimentError>> = pool.install(|| {
+    // `collect` keeps the job order whatever thread ran which job; each job also says which
+    // worker ran it, so the results can tell how many workers took part.
+    let jobs: Vec<JobOutcome> = pool.install(|| {
         jobs.par_iter()
             .with_max_len(1)
-            .map(|&(s, seed)| run_lockstep(config, registry, (s, seed), stop, &bar))
+            .map(|&(s, seed)| {
+                let worker = rayon::current_thread_index();
+                (
+                    worker,
+                    run_lockstep(config, registry, (s, seed), stop, &bar),
+                )
+            })
             .collect()
     });
     let wall_seconds = t0.elapsed().as_secs_f64();
     bar.finish_and_clear();
+    let mut workers: Vec<usize> = jobs.iter().filter_map(|(w, _)| *w).collect();
+    workers.sort_unstable();
+    workers.dedup();
     let mut runs: Vec<Run> = jobs
         .into_iter()
+        .map(|(_, job)| job)
         .collect::<Result<Vec<_>, _>>()?
         .into_iter()
         .flatten()
@@ -95,9 +106,13 @@ pub fn run_experiment_until(
         warm_starts: config.warm_start_labels(),
         runs,
         threads,
+        workers_used: workers.len(),
         wall_seconds,
     })
 }
+
+/// A (solver, seed) job's runs and the pool worker that ran it (`None` outside a pool).
+type JobOutcome = (Option<usize>, Result<Vec<Run>, ExperimentError>);
 
 /// One provider's world of a lockstep job, with its own solvers.
 struct Lane {
