@@ -10,10 +10,13 @@
 //! carried impulses, and hands the result to the world's (unrelaxed) PGS, which then only
 //! has to settle what over-relaxation overshoots. Its sweeps are provider time.
 //!
-//! Only single-point manifolds are relaxed. A two-point manifold (a box face) keeps its
-//! effective masses: its normals go through Box2D's block solver, which the scaling would not
-//! reach, and relaxing its friction rows alone made a box pyramid's first step diverge to
-//! 1e74 N·s (`sor_keeps_a_box_pyramid_standing`). As a guard, sweeps whose last impulse
+//! A two-point manifold (a box face) keeps its effective masses by default: its normals go
+//! through Box2D's block solver, which the scaling would not reach, and relaxing its friction
+//! rows alone made a box pyramid's first step diverge to 1e74 N·s
+//! (`regression_sor_blew_up_a_box_pyramid`). With [`RelaxedConfig::pairs`] above 1 the relaxed
+//! copy splits each such manifold into two one-point rows, normals included, relaxed as a
+//! whole by that factor: projected SOR on the pair's rows instead of the block's exact 2 × 2
+//! solve, which is what lets the sweeps reach towers and box piles. As a guard, sweeps whose last impulse
 //! change is larger than their first (diverging) are dropped: the carried impulses are
 //! returned instead and the drop is counted (`diagnostics`: `dropped`).
 //!
@@ -41,6 +44,12 @@ pub struct RelaxedConfig {
     /// Stop the sweeps once the ∞-norm of an iteration's impulse change is below this
     /// (N·s; default 1e-4, the world's own tolerance; ≥ 0; 0 runs every sweep).
     pub tolerance: Real,
+    /// Relaxation factor of two-point manifolds (box faces), in [1, 2) (default 1: they keep
+    /// the block solver's pair and are not relaxed). Above 1, and when no pass budget is set,
+    /// each two-point manifold of the relaxed copy is split into two one-point rows, each
+    /// over-relaxed by this factor; under a budget the pairs stay blocks (at K = 8 the split
+    /// rows left a higher residual on the towers than the block solve; docs/RESEARCH.md).
+    pub pairs: Real,
 }
 
 impl Default for RelaxedConfig {
@@ -49,6 +58,7 @@ impl Default for RelaxedConfig {
             omega: 1.7,
             sweeps: 300,
             tolerance: 1e-4,
+            pairs: 1.0,
         }
     }
 }
@@ -132,13 +142,15 @@ impl RelaxedWarmStart {
     /// A provider under `config` (validated: ω in [1, 2), 1 to `MAX_SWEEPS` sweeps, a
     /// finite tolerance ≥ 0).
     pub fn new(config: RelaxedConfig) -> Result<Self, SpecError> {
-        if !(1.0..2.0).contains(&config.omega) {
-            return Err(SpecError::InvalidParameter {
-                spec: "sor".into(),
-                param: "omega".into(),
-                value: config.omega.to_string(),
-                reason: "must be in [1, 2)".into(),
-            });
+        for (param, value) in [("omega", config.omega), ("pairs", config.pairs)] {
+            if !(1.0..2.0).contains(&value) {
+                return Err(SpecError::InvalidParameter {
+                    spec: "sor".into(),
+                    param: param.into(),
+                    value: value.to_string(),
+                    reason: "must be in [1, 2)".into(),
+                });
+            }
         }
         let inner = InnerSolve::new(
             "sor",
@@ -269,18 +281,32 @@ impl WarmStart for RelaxedWarmStart {
         r.clear();
         r.bodies.extend_from_slice(&problem.bodies);
         r.points.extend_from_slice(&problem.points);
+        let split = self.config.pairs > 1.0 && ctx.pass_budget.is_none();
         for &(start, end) in &problem.manifolds {
-            if end == start + 1 {
-                let omega = match self.relaxation {
-                    Some(_) => self.omegas[start as usize],
-                    None => self.config.omega,
-                };
-                let p = &mut r.points[start as usize];
-                p.normal_mass *= omega;
-                p.tangent_mass *= omega;
+            let omega = |i: u32| {
+                if end > start + 1 {
+                    self.config.pairs
+                } else if self.relaxation.is_some() {
+                    self.omegas[i as usize]
+                } else {
+                    self.config.omega
+                }
+            };
+            if end == start + 1 || split {
+                for i in start..end {
+                    let p = &mut r.points[i as usize];
+                    p.normal_mass *= omega(i);
+                    p.tangent_mass *= omega(i);
+                    p.manifold = r.manifolds.len() as u32;
+                    r.manifolds.push((i, i + 1));
+                }
+            } else {
+                for p in &mut r.points[start as usize..end as usize] {
+                    p.manifold = r.manifolds.len() as u32;
+                }
+                r.manifolds.push((start, end));
             }
         }
-        r.manifolds.extend_from_slice(&problem.manifolds);
         // Under a budget the start's own passes come out of the sweeps' share.
         let cap = ctx
             .pass_budget

@@ -413,6 +413,7 @@ fn over_relaxed_sweeps_cut_the_world_iterations_and_the_total() {
         omega: 1.0,
         sweeps: 7,
         tolerance: 0.0,
+        pairs: 1.0,
     };
     let start = start_of(
         &mut RelaxedWarmStart::new(plain).unwrap(),
@@ -423,18 +424,22 @@ fn over_relaxed_sweeps_cut_the_world_iterations_and_the_total() {
     let carried_start: Vec<Impulse> = carried.iter().map(|c| c.unwrap()).collect();
     assert_eq!(start, pgs_sweeps(&problem, &carried_start, 7));
     assert!(start_of(&mut sor, &ContactProblem::new(), &[], 2).is_empty());
-    for (omega, sweeps, tolerance) in [
-        (0.9, 10, 1e-4),
-        (2.0, 10, 1e-4),
-        (f64::NAN, 10, 1e-4),
-        (1.5, 0, 1e-4),
-        (1.5, 100_001, 1e-4),
-        (1.5, 10, -1.0),
+    for (omega, sweeps, tolerance, pairs) in [
+        (0.9, 10, 1e-4, 1.0),
+        (2.0, 10, 1e-4, 1.0),
+        (f64::NAN, 10, 1e-4, 1.0),
+        (1.5, 0, 1e-4, 1.0),
+        (1.5, 100_001, 1e-4, 1.0),
+        (1.5, 10, -1.0, 1.0),
+        (1.5, 10, 1e-4, 0.9),
+        (1.5, 10, 1e-4, 2.0),
+        (1.5, 10, 1e-4, f64::NAN),
     ] {
         let config = RelaxedConfig {
             omega,
             sweeps,
             tolerance,
+            pairs,
         };
         assert!(RelaxedWarmStart::new(config).is_err(), "{config:?}");
     }
@@ -475,6 +480,7 @@ fn sor_refines_the_start_of_another_provider() {
         omega: 1.0,
         sweeps: 7,
         tolerance: 0.0,
+        pairs: 1.0,
     };
     let mut from_zeros = RelaxedWarmStart::new(plain)
         .unwrap()
@@ -497,4 +503,60 @@ fn sor_refines_the_start_of_another_provider() {
             "{got:?} vs {want:?}"
         );
     }
+}
+
+/// `pairs` relaxes box faces: split into over-relaxed point rows, a settling box pyramid's
+/// world solve needs a third fewer iterations (at least) than from the block-kept sweeps, every step ends
+/// near a solution and the pyramid stands. Under a pass budget the pairs stay blocks: the
+/// same bits as `pairs = 1`.
+#[test]
+fn sor_pairs_relax_box_faces_and_keep_a_pyramid_standing() {
+    use deepcontact_core::{StepReport, WorldSettings, scene};
+    use deepcontact_pgs::PgsPositionSolver;
+    let run = |pairs: f64, budget: Option<u32>| -> Vec<StepReport> {
+        let settings = WorldSettings {
+            budget,
+            ..WorldSettings::default()
+        };
+        let mut world = scene::pyramid(10).build(settings).unwrap();
+        let config = RelaxedConfig {
+            pairs,
+            ..RelaxedConfig::default()
+        };
+        let mut sor = RelaxedWarmStart::new(config).unwrap();
+        let (mut solver, mut position) = (PgsSolver::new(), PgsPositionSolver::new());
+        (0..60)
+            .map(|_| world.step(&mut sor, &mut solver, &mut position).unwrap())
+            .collect()
+    };
+    let iterations = |reports: &[StepReport]| -> u64 {
+        reports
+            .iter()
+            .map(|r| u64::from(r.velocity_iterations))
+            .sum()
+    };
+    let (blocks, split) = (run(1.0, None), run(1.3, None));
+    for r in &split {
+        assert!(
+            r.natural_residual < 1e-2,
+            "step {}: natural residual {:e}",
+            r.step,
+            r.natural_residual
+        );
+    }
+    let contacts = split.last().unwrap().contacts;
+    assert!(contacts > 150, "{contacts} contacts left");
+    let (b, s) = (iterations(&blocks), iterations(&split));
+    assert!(
+        3 * s < 2 * b,
+        "world iterations: {s} after split pairs against {b} after blocks (3 704 against 6 986 when written)"
+    );
+    let (b8, s8) = (run(1.0, Some(8)), run(1.3, Some(8)));
+    let bits = |reports: &[StepReport]| -> Vec<u64> {
+        reports
+            .iter()
+            .map(|r| r.natural_residual.to_bits())
+            .collect()
+    };
+    assert_eq!(bits(&b8), bits(&s8), "under a budget the pairs stay blocks");
 }

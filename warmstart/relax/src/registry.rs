@@ -17,14 +17,21 @@ pub fn learned_sor(
     Ok(RelaxedWarmStart::new(config)?.with_relaxation(name, Box::new(policy)))
 }
 
+/// `learned-sor`'s factor of two-point manifolds ([`RelaxedConfig::pairs`]), tuned on seeds
+/// 100–109 of the pyramid, the stack and the box and polygon piles (1.2–1.6 tried;
+/// docs/RESEARCH.md).
+pub const LEARNED_PAIRS: f64 = 1.3;
+
 /// Registers `learned-sor`: the shipped policy, or `path=policy.json`; `name=` renames it,
-/// `sweeps=` (300) and `tolerance=` (1e-4) bound its sweeps as `sor`'s.
+/// `sweeps=` (300) and `tolerance=` (1e-4) bound its sweeps as `sor`'s; `pairs=`
+/// ([`LEARNED_PAIRS`]) relaxes two-point manifolds.
 pub fn register(registry: &mut Registry) {
     registry.register_provider(
         "learned-sor",
         ProviderInfo::new(
             "sor whose per-contact relaxation factor is picked by a learned policy (six features, fitted on seeds 0-99; \
-             models/learned-sor.json); path=policy.json, name=learned-sor, sweeps=300, tolerance=1e-4",
+             models/learned-sor.json); path=policy.json, name=learned-sor, sweeps=300, tolerance=1e-4, pairs=1.3 (two-point manifolds split into rows relaxed by it without a pass budget; \
+             1 keeps them blocks)",
         )
         .learned(),
         |p, _| {
@@ -43,6 +50,7 @@ pub fn register(registry: &mut Registry) {
             let config = RelaxedConfig {
                 sweeps: u32::try_from(sweeps).unwrap_or(u32::MAX),
                 tolerance: p.f64("tolerance", d.tolerance)?,
+                pairs: p.f64("pairs", LEARNED_PAIRS)?,
                 ..d
             };
             Ok(Box::new(learned_sor(name, policy, config)?))
