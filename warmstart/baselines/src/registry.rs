@@ -109,7 +109,8 @@ fn register_sor(registry: &mut Registry) {
     registry.register_provider(
         "sor",
         "carried impulses refined by over-relaxed Gauss-Seidel sweeps (PGS on effective masses scaled by omega); \
-         omega=1.7, sweeps=300, tolerance=1e-4 (tuned on seeds 100–109), pairs=1 (two-point manifolds' factor; above 1 they are split into over-relaxed point rows), start=builtin (a registered provider's name: \
+         omega=1.7, sweeps=300, tolerance=1e-4 (tuned on seeds 100–109), pairs=1 (two-point manifolds' factor; above 1 they are split into over-relaxed point rows), budget_omega=2 \
+         (largest factor under a pass budget), start=builtin (a registered provider's name: \
          the start the sweeps refine)",
         |p, r| {
             let d = RelaxedConfig::default();
@@ -118,6 +119,7 @@ fn register_sor(registry: &mut Registry) {
                 sweeps: u32_param(p, "sweeps", d.sweeps)?,
                 tolerance: p.f64("tolerance", d.tolerance)?,
                 pairs: p.f64("pairs", d.pairs)?,
+                budget_omega: p.f64("budget_omega", d.budget_omega)?,
             };
             let provider = RelaxedWarmStart::new(config)?;
             Ok(Box::new(match p.string("start") {

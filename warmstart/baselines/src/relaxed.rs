@@ -50,6 +50,9 @@ pub struct RelaxedConfig {
     /// over-relaxed by this factor; under a budget the pairs stay blocks (at K = 8 the split
     /// rows left a higher residual on the towers than the block solve; docs/RESEARCH.md).
     pub pairs: Real,
+    /// Largest factor under a pass budget, in [1, 2] (default 2: no cap). With few sweeps a
+    /// large ω overshoots and no sweep is left to settle it.
+    pub budget_omega: Real,
 }
 
 impl Default for RelaxedConfig {
@@ -59,6 +62,7 @@ impl Default for RelaxedConfig {
             sweeps: 300,
             tolerance: 1e-4,
             pairs: 1.0,
+            budget_omega: 2.0,
         }
     }
 }
@@ -142,6 +146,14 @@ impl RelaxedWarmStart {
     /// A provider under `config` (validated: ω in [1, 2), 1 to `MAX_SWEEPS` sweeps, a
     /// finite tolerance ≥ 0).
     pub fn new(config: RelaxedConfig) -> Result<Self, SpecError> {
+        if !(1.0..=2.0).contains(&config.budget_omega) {
+            return Err(SpecError::InvalidParameter {
+                spec: "sor".into(),
+                param: "budget_omega".into(),
+                value: config.budget_omega.to_string(),
+                reason: "must be in [1, 2]".into(),
+            });
+        }
         for (param, value) in [("omega", config.omega), ("pairs", config.pairs)] {
             if !(1.0..2.0).contains(&value) {
                 return Err(SpecError::InvalidParameter {
@@ -282,15 +294,20 @@ impl WarmStart for RelaxedWarmStart {
         r.bodies.extend_from_slice(&problem.bodies);
         r.points.extend_from_slice(&problem.points);
         let split = self.config.pairs > 1.0 && ctx.pass_budget.is_none();
+        let cap = match ctx.pass_budget {
+            Some(_) => self.config.budget_omega,
+            None => 2.0,
+        };
         for &(start, end) in &problem.manifolds {
             let omega = |i: u32| {
-                if end > start + 1 {
+                let omega = if end > start + 1 {
                     self.config.pairs
                 } else if self.relaxation.is_some() {
                     self.omegas[i as usize]
                 } else {
                     self.config.omega
-                }
+                };
+                omega.min(cap)
             };
             if end == start + 1 || split {
                 for i in start..end {

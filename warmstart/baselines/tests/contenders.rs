@@ -414,6 +414,7 @@ fn over_relaxed_sweeps_cut_the_world_iterations_and_the_total() {
         sweeps: 7,
         tolerance: 0.0,
         pairs: 1.0,
+        budget_omega: 2.0,
     };
     let start = start_of(
         &mut RelaxedWarmStart::new(plain).unwrap(),
@@ -440,6 +441,7 @@ fn over_relaxed_sweeps_cut_the_world_iterations_and_the_total() {
             sweeps,
             tolerance,
             pairs,
+            budget_omega: 2.0,
         };
         assert!(RelaxedWarmStart::new(config).is_err(), "{config:?}");
     }
@@ -481,6 +483,7 @@ fn sor_refines_the_start_of_another_provider() {
         sweeps: 7,
         tolerance: 0.0,
         pairs: 1.0,
+        budget_omega: 2.0,
     };
     let mut from_zeros = RelaxedWarmStart::new(plain)
         .unwrap()
@@ -559,4 +562,39 @@ fn sor_pairs_relax_box_faces_and_keep_a_pyramid_standing() {
             .collect()
     };
     assert_eq!(bits(&b8), bits(&s8), "under a budget the pairs stay blocks");
+}
+
+/// `budget_omega` caps the factors under a pass budget only: capped at 1, ω = 1.7's sweeps
+/// are plain PGS's (the bits of ω = 1) at K = 8, and without a budget the cap is not applied.
+#[test]
+fn sor_budget_omega_caps_the_factors_under_a_budget_only() {
+    use deepcontact_core::{WorldSettings, scene};
+    use deepcontact_pgs::PgsPositionSolver;
+    let run = |omega: f64, budget_omega: f64, budget: Option<u32>| -> Vec<u64> {
+        let settings = WorldSettings {
+            budget,
+            ..WorldSettings::default()
+        };
+        let mut world = scene::pile(100, 100).unwrap().build(settings).unwrap();
+        let config = RelaxedConfig {
+            omega,
+            budget_omega,
+            ..RelaxedConfig::default()
+        };
+        let mut sor = RelaxedWarmStart::new(config).unwrap();
+        let (mut solver, mut position) = (PgsSolver::new(), PgsPositionSolver::new());
+        let mut contact_steps = 0;
+        let bits = (0..80)
+            .map(|_| {
+                let r = world.step(&mut sor, &mut solver, &mut position).unwrap();
+                contact_steps += usize::from(r.contacts > 0);
+                r.natural_residual.to_bits()
+            })
+            .collect();
+        assert!(contact_steps > 30, "{contact_steps} steps with contacts");
+        bits
+    };
+    assert_eq!(run(1.7, 1.0, Some(8)), run(1.0, 2.0, Some(8)));
+    assert_ne!(run(1.7, 2.0, Some(8)), run(1.0, 2.0, Some(8)));
+    assert_eq!(run(1.7, 1.0, None), run(1.7, 2.0, None));
 }

@@ -27,4 +27,4 @@ mod registry;
 
 pub use error::RelaxError;
 pub use policy::{FEATURES, FORMAT, PolicyFile, RelaxationPolicy};
-pub use registry::{LEARNED_PAIRS, learned_sor, register};
+pub use registry::{LEARNED_BUDGET_OMEGA, LEARNED_PAIRS, learned_sor, register};

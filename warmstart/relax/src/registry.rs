@@ -22,16 +22,24 @@ pub fn learned_sor(
 /// docs/RESEARCH.md).
 pub const LEARNED_PAIRS: f64 = 1.3;
 
+/// `learned-sor`'s largest factor under a pass budget ([`RelaxedConfig::budget_omega`]),
+/// tuned at K = 8 and 16 on seeds 100–109 of the circle, box and polygon piles and the
+/// 1 000-circle pile (1.4–1.6 tried; docs/RESEARCH.md). The policy was fitted to solves run to
+/// a tolerance, where ω up to 1.95 on large islands pays; with a handful of sweeps it overshoots.
+pub const LEARNED_BUDGET_OMEGA: f64 = 1.5;
+
 /// Registers `learned-sor`: the shipped policy, or `path=policy.json`; `name=` renames it,
 /// `sweeps=` (300) and `tolerance=` (1e-4) bound its sweeps as `sor`'s; `pairs=`
-/// ([`LEARNED_PAIRS`]) relaxes two-point manifolds.
+/// ([`LEARNED_PAIRS`]) relaxes two-point manifolds and `budget_omega=` ([`LEARNED_BUDGET_OMEGA`])
+/// caps the factors under a pass budget.
 pub fn register(registry: &mut Registry) {
     registry.register_provider(
         "learned-sor",
         ProviderInfo::new(
             "sor whose per-contact relaxation factor is picked by a learned policy (six features, fitted on seeds 0-99; \
              models/learned-sor.json); path=policy.json, name=learned-sor, sweeps=300, tolerance=1e-4, pairs=1.3 (two-point manifolds split into rows relaxed by it without a pass budget; \
-             1 keeps them blocks)",
+             1 keeps them blocks), \
+             budget_omega=1.5 (largest factor under a pass budget)",
         )
         .learned(),
         |p, _| {
@@ -51,6 +59,7 @@ pub fn register(registry: &mut Registry) {
                 sweeps: u32::try_from(sweeps).unwrap_or(u32::MAX),
                 tolerance: p.f64("tolerance", d.tolerance)?,
                 pairs: p.f64("pairs", LEARNED_PAIRS)?,
+                budget_omega: p.f64("budget_omega", LEARNED_BUDGET_OMEGA)?,
                 ..d
             };
             Ok(Box::new(learned_sor(name, policy, config)?))
