@@ -114,12 +114,12 @@ def _gather(ray, refs: List[Any]) -> List[Any]:
     """The results of ``refs`` in their order; on Ctrl-C the tasks are cancelled."""
     try:
         return ray.get(refs)
-    except KeyboardInterrupt:
+    except BaseException as e:
         for ref in refs:
             ray.cancel(ref, force=True)
+        if isinstance(e, ray.exceptions.RayError):
+            raise ClusterError(f"a cluster task failed: {e}") from e
         raise
-    except ray.exceptions.RayError as e:
-        raise ClusterError(f"a cluster task failed: {e}") from e
 
 
 def _travel(ray, what: str, value: Any) -> None:
@@ -296,7 +296,9 @@ def generate(
             manifest["files"].sort(key=lambda f: f["seed"])
             manifest["complete"] = not pending
             _write_json_atomic(path, manifest)
-    except KeyboardInterrupt:
+    except BaseException:
+        # Ctrl-C or a failed seed: the seeds still running are cancelled (their files were
+        # never renamed into place); the manifest lists the finished ones.
         for ref in pending:
             ray.cancel(ref, force=True)
         raise

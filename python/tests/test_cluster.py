@@ -174,6 +174,20 @@ def test_a_killed_worker_loses_no_row(address, tmp_path):
     assert len(keys) == len(set(keys)) == 2 * len(seeds) * steps
 
 
+def test_an_interrupted_driver_writes_nothing(address, tmp_path):
+    out = tmp_path / "out"
+    code = ("import deepcontact\n"
+            f"deepcontact.compare(seeds=range(12345, 12349), steps=200, out={str(out)!r}, "
+            f"cluster={address!r})\n")
+    driver = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
+                              stderr=subprocess.STDOUT, text=True)
+    wait_for(lambda: task_processes("_compare_task"), 120, "running compare task")
+    driver.send_signal(signal.SIGINT)  # Ctrl-C
+    output, _ = driver.communicate(timeout=60)
+    assert "KeyboardInterrupt" in output, output
+    assert not out.exists() or not any(out.iterdir())
+
+
 def test_the_plain_package_does_not_import_ray():
     code = "import sys, deepcontact; print('ray' in sys.modules)"
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
