@@ -118,11 +118,13 @@ def numbers_of(out):
 
 
 def test_compare_on_the_cluster_equals_one_machine(address, tmp_path):
-    # 6 seeds x 60 steps in CI; the full check (docs/CLUSTER.md) sets 40 seeds x 250 steps.
+    # 6 seeds x 60 steps x (none, builtin) in CI; the full check (docs/CLUSTER.md) sets 40
+    # seeds x 250 steps x the CLI's default warm starts.
     n = int(os.environ.get("DEEPCONTACT_CLUSTER_SEEDS", "6"))
     steps = int(os.environ.get("DEEPCONTACT_CLUSTER_STEPS", "60"))
+    specs = os.environ.get("DEEPCONTACT_CLUSTER_WARM_STARTS", "none,builtin").split(",")
     seeds = range(12345, 12345 + n)
-    warm_starts = ["none", "builtin", carried]  # a Python provider travels to the workers
+    warm_starts = specs + [carried]  # a Python provider travels to the workers
     local = deepcontact.compare(warm_starts, seeds=seeds, steps=steps, out=tmp_path / "local",
                                 as_frame=False)
     spread = deepcontact.compare(warm_starts, seeds=seeds, steps=steps, out=tmp_path / "cluster",
@@ -131,7 +133,7 @@ def test_compare_on_the_cluster_equals_one_machine(address, tmp_path):
         [{k: v for k, v in r.items() if k not in TIMING} for r in local]
     a, b = numbers_of(tmp_path / "local"), numbers_of(tmp_path / "cluster")
     assert a == b
-    assert len(a["steps"]) == 1 + 3 * len(seeds) * steps
+    assert len(a["steps"]) == 1 + (len(specs) + 1) * len(seeds) * steps
     # The cluster's two CPUs are the threads it reports.
     assert json.loads((tmp_path / "cluster" / "summary.json").read_text())["threads"] == 2
 
