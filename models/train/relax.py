@@ -16,6 +16,12 @@ run on the tuning seeds 100-109 and the best of them is written, with the whole 
 the release CLI (`cargo build --release`).
 
     python models/train/relax.py --out models/learned-sor.json
+
+With `--cluster ADDRESS` (a Ray address: `127.0.0.1:6379`, `auto`; needs the Python package
+with its Ray extra, `pip install "./python[ray]"`) every evaluation of a generation is a Ray
+task on that cluster (the CLI at the same path on every node). The random numbers are drawn
+here and the results taken in a fixed order, so the same `--seed` gives the same policy on
+one worker or many.
 """
 
 import argparse
@@ -43,7 +49,11 @@ def policy_file(weights, span, training=None):
 
 
 def work(cli, weights, span, seeds, scratch, threads):
-    """Mean over contact steps of slowest-island sweeps + world iterations, and the row."""
+    """Mean over contact steps of slowest-island sweeps + world iterations, and the row.
+    With `scratch` None, in a temporary directory of its own (a cluster task's)."""
+    if scratch is None:
+        with tempfile.TemporaryDirectory() as own:
+            return work(cli, weights, span, seeds, own, threads)
     fd, path = tempfile.mkstemp(suffix=".json", dir=scratch)
     with os.fdopen(fd, "w") as f:
         json.dump(policy_file(weights, span), f)
@@ -61,6 +71,19 @@ def work(cli, weights, span, seeds, scratch, threads):
     return row["mean_iterations"] + sum(sweeps) / len(sweeps), row
 
 
+def evaluate(a, candidates, seeds, scratch):
+    """`work` of every weight vector in `candidates` on `seeds`, in the order of `candidates`:
+    one after another here, or as Ray tasks on `--cluster` (results in the same order)."""
+    if not a.cluster:
+        return [work(a.cli, c, a.span, seeds, scratch, a.threads) for c in candidates]
+    from deepcontact.cluster import map_tasks
+
+    cli = os.path.abspath(a.cli)
+    # A task holds one CPU, so its CLI runs on one thread unless --threads says otherwise.
+    args = [(cli, c, a.span, seeds, None, a.threads or 1) for c in candidates]
+    return [tuple(r) for r in map_tasks(work, args, cluster=a.cluster)]
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--cli", default="target/release/deepcontact")
@@ -74,6 +97,7 @@ def main():
     p.add_argument("--span", type=float, default=0.95)
     p.add_argument("--threads", type=int, default=0)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--cluster", help="Ray address: evaluate each generation's candidates as Ray tasks there")
     a = p.parse_args()
     if not (0 < a.span < 1 and 1 < a.start_omega < 1 + a.span):
         sys.exit("--span must be in (0, 1) and --start-omega in (1, 1 + span)")
@@ -88,11 +112,11 @@ def main():
     with tempfile.TemporaryDirectory() as scratch:
         for gen in range(a.generations):
             seeds = sorted(rng.sample(train, a.batch))
-            before, _ = work(a.cli, mean, a.span, seeds, scratch, a.threads)
             pop = [[m + sigma * rng.gauss(0, 1) for m in mean] for _ in range(a.population)]
-            scored = sorted((work(a.cli, c, a.span, seeds, scratch, a.threads)[0], c) for c in pop)
+            (before, _), *pop_work = evaluate(a, [mean] + pop, seeds, scratch)
+            scored = sorted((w, c) for (w, _), c in zip(pop_work, pop))
             new = [sum(r * c[k] for r, (_, c) in zip(ranks, scored)) for k in range(len(mean))]
-            after, _ = work(a.cli, new, a.span, seeds, scratch, a.threads)
+            (after, _), = evaluate(a, [new], seeds, scratch)
             sigma *= 1.1 if after < before else 0.8
             mean = new
             history.append({"generation": gen, "seeds": seeds, "work_before": before,
@@ -104,8 +128,7 @@ def main():
         candidates = [h["weights"] for h in history[-a.select:]]
         candidates.append([math.log(q / (1 - q))] + [0.0] * (len(FEATURES) - 1))  # sor, for reference
         tried = []
-        for c in candidates:
-            w, row = work(a.cli, c, a.span, tuning, scratch, a.threads)
+        for c, (w, row) in zip(candidates, evaluate(a, candidates, tuning, scratch)):
             tried.append({"weights": c, "work": w, "mean_iterations": row["mean_iterations"],
                           "capped_steps": row["capped_steps"],
                           "natural_residual_max": row["natural_residual_max"]})

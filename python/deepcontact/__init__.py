@@ -58,6 +58,7 @@ def compare(
     figures: bool = False,
     same_problems: Optional[str] = None,
     as_frame: Optional[bool] = None,
+    cluster: Optional[str] = None,
 ) -> Any:
     """Run the warm-start comparison of ``deepcontact compare`` and return its summary.
 
@@ -78,6 +79,11 @@ def compare(
     provider starts and solves on a copy of that provider's world at every step, so the rows
     compare starts on identical problems rather than on the trajectories they lead to.
 
+    With ``cluster`` (a Ray address as ``ray.init(address=...)`` takes it: ``"127.0.0.1:6379"``,
+    ``"auto"``) the seeds run as Ray tasks on that cluster, one per seed, and are merged into
+    the same rows and files, the timing columns aside (``deepcontact.cluster.compare``; needs
+    ``pip install "./python[ray]"``).
+
     Returns one row per solver and warm start with the columns of the CLI's
     ``summary.json``: a pandas ``DataFrame`` when pandas is installed (``as_frame=None``) or
     requested (``as_frame=True``), else a list of dicts.
@@ -88,6 +94,16 @@ def compare(
         warm_starts = [warm_starts]
     if isinstance(solvers, str):
         solvers = [solvers]
+    if cluster is not None:
+        from . import cluster as _cluster
+
+        rows = _cluster.compare(
+            list(warm_starts), seeds, steps, cluster=cluster, solvers=list(solvers),
+            bodies=bodies, scene=scene, tolerance=tolerance, max_iterations=max_iterations,
+            norm=norm, guard=guard, threads=threads, out=out, figures=figures,
+            same_problems=same_problems,
+        )
+        return _frame(rows, as_frame)
     rows = _compare_summary(
         list(warm_starts),
         [int(s) for s in seeds],
@@ -104,6 +120,11 @@ def compare(
         bool(figures),
         same_problems,
     )
+    return _frame(rows, as_frame)
+
+
+def _frame(rows: list, as_frame: Optional[bool]) -> Any:
+    """``rows`` as a pandas DataFrame where pandas is there (``as_frame=None``) or asked for."""
     if as_frame is False:
         return rows
     try:

@@ -191,4 +191,37 @@ def compare_summary(
     figures: bool,
     same_problems: Optional[str] = None,
 ) -> List[dict[str, Any]]: ...
+def compare_part(
+    warm_starts: Sequence[Any],
+    seeds: Sequence[int],
+    steps: int,
+    solvers: Sequence[str],
+    bodies: int,
+    scene: str,
+    tolerance: float,
+    max_iterations: int,
+    norm: str,
+    guard: str,
+    threads: int,
+    same_problems: Optional[str] = None,
+) -> bytes: ...
+def compare_merge(
+    warm_starts: Sequence[Any],
+    seeds: Sequence[int],
+    steps: int,
+    solvers: Sequence[str],
+    bodies: int,
+    scene: str,
+    tolerance: float,
+    max_iterations: int,
+    norm: str,
+    guard: str,
+    threads: int,
+    out: Optional[Union[str, PathLike[str]]],
+    figures: bool,
+    same_problems: Optional[str],
+    parts: Sequence[bytes],
+    total_threads: int,
+    wall_seconds: float,
+) -> List[dict[str, Any]]: ...
 def registry() -> Tuple[List[Tuple[str, str]], List[Tuple[str, str]]]: ...

@@ -5,8 +5,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use deepcontact_core::registry::{Spec, split_spec_list};
-use deepcontact_core::{ProviderInfo, Real, SpecError, WarmStart};
-use deepcontact_experiments::compare::{self, Config};
+use deepcontact_core::{ProviderInfo, Real, Registry, SpecError, WarmStart};
+use deepcontact_experiments::compare::{self, Config, Results};
 use deepcontact_experiments::full_registry;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString};
@@ -55,7 +55,30 @@ pub struct CompareArgs {
 /// Runs the comparison (without the GIL, Ctrl-C checked every few milliseconds) and returns
 /// the summary rows as dicts with the columns of the CLI's `summary.json`.
 pub fn run(py: Python<'_>, args: CompareArgs) -> Result<Py<PyList>, PythonBindingError> {
-    let pending = Arc::new(Pending::default());
+    let results = results(py, &args)?;
+    finish(py, &results, &args)
+}
+
+/// Writes the files of `results` into `args.out` (if any) and returns the summary rows.
+pub fn finish(
+    py: Python<'_>,
+    results: &Results,
+    args: &CompareArgs,
+) -> Result<Py<PyList>, PythonBindingError> {
+    if let Some(dir) = &args.out {
+        let dir = dir.clone();
+        py.detach(|| compare::write_outputs(results, &dir, args.figures))?;
+    }
+    summary_rows(py, &compare::summarize(results))
+}
+
+/// The registry with `args`' Python providers registered, and the warm-start specs in
+/// `args`' order (a Python provider's spec is its name).
+pub fn resolve(
+    py: Python<'_>,
+    args: &CompareArgs,
+    pending: &Arc<Pending>,
+) -> Result<(Registry, Vec<Spec>), PythonBindingError> {
     let mut registry = full_registry();
     let mut warm_starts = Vec::new();
     for ws in &args.warm_starts {
@@ -101,7 +124,14 @@ pub fn run(py: Python<'_>, args: CompareArgs) -> Result<Py<PyList>, PythonBindin
             params: Default::default(),
         });
     }
-    let config = config(&args, warm_starts)?;
+    Ok((registry, warm_starts))
+}
+
+/// The comparison's [`Results`] (without the GIL, Ctrl-C checked every few milliseconds).
+pub fn results(py: Python<'_>, args: &CompareArgs) -> Result<Results, PythonBindingError> {
+    let pending = Arc::new(Pending::default());
+    let (registry, warm_starts) = resolve(py, args, &pending)?;
+    let config = config(args, warm_starts)?;
 
     let stop = AtomicBool::new(false);
     let (results, interrupt) = std::thread::scope(|scope| {
@@ -124,18 +154,13 @@ pub fn run(py: Python<'_>, args: CompareArgs) -> Result<Py<PyList>, PythonBindin
     if let Some(err) = interrupt.or_else(|| pending.take()) {
         return Err(err.into());
     }
-    let results = results
+    results
         .map_err(|_| PythonBindingError::Invalid("the comparison's thread panicked".into()))?
-        .map_err(|e| crate::error::with_cause(py, e.into(), pending.take_cause()))?;
-    if let Some(dir) = &args.out {
-        let dir = dir.clone();
-        py.detach(|| compare::write_outputs(&results, &dir, args.figures))?;
-    }
-    summary_rows(py, &compare::summarize(&results))
+        .map_err(|e| crate::error::with_cause(py, e.into(), pending.take_cause()))
 }
 
 /// The comparison `args` describe, with `warm_starts` resolved.
-fn config(args: &CompareArgs, warm_starts: Vec<Spec>) -> Result<Config, PythonBindingError> {
+pub fn config(args: &CompareArgs, warm_starts: Vec<Spec>) -> Result<Config, PythonBindingError> {
     let solvers = args
         .solvers
         .iter()

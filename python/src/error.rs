@@ -34,6 +34,17 @@ pub enum PythonBindingError {
     /// A bad argument (its message names it).
     #[error("{0}")]
     Invalid(String),
+    /// A comparison part that cannot be read (its index among the parts, and why).
+    #[error("comparison part {part}: {reason}")]
+    Part {
+        /// Index of the part in the list merged.
+        part: usize,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// Parts that do not make up the comparison (a run missing, doubled or foreign).
+    #[error("merging the comparison's parts: {0}")]
+    Merge(String),
     /// A Python exception to raise as it is (a KeyboardInterrupt, a provider's own error).
     #[error(transparent)]
     Python(#[from] PyErr),
@@ -46,6 +57,9 @@ impl From<PythonBindingError> for PyErr {
             PythonBindingError::Python(err) => err,
             PythonBindingError::Invalid(_) | PythonBindingError::Spec(_) => {
                 PyValueError::new_err(message)
+            }
+            PythonBindingError::Part { .. } | PythonBindingError::Merge(_) => {
+                DeepContactError::new_err(message)
             }
             PythonBindingError::Core(err) => core_error(err, message),
             PythonBindingError::Experiment(ExperimentError::Core(err)) => core_error(err, message),

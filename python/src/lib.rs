@@ -11,7 +11,9 @@
 //!   [`WarmStart`](deepcontact_core::WarmStart) calling a Python callable or object, its output
 //!   checked by the world's guard like a Rust provider's;
 //! * `compare` — [`deepcontact_experiments::compare`] with the Python providers registered
-//!   into [`deepcontact_experiments::full_registry`], Ctrl-C checked between steps.
+//!   into [`deepcontact_experiments::full_registry`], Ctrl-C checked between steps;
+//! * comparison parts — the runs of some seeds as exact bytes, and parts merged into the
+//!   one-machine comparison's files (what `deepcontact.cluster` fans out and gathers).
 //!
 //! The GIL is released while Rust works and taken only to call a Python provider.
 #![warn(missing_docs)]
@@ -19,6 +21,7 @@
 mod compare;
 mod error;
 mod island;
+mod parts;
 mod provider;
 mod world;
 
@@ -69,6 +72,91 @@ fn compare_summary(
     )
 }
 
+/// Runs the comparison of a few seeds and returns its runs as bytes (a part for
+/// `compare_merge`; what a cluster task of `deepcontact.cluster` returns).
+#[pyfunction]
+#[pyo3(signature = (warm_starts, seeds, steps, solvers, bodies, scene, tolerance, max_iterations, norm, guard, threads, same_problems=None))]
+#[allow(clippy::too_many_arguments)]
+fn compare_part(
+    py: Python<'_>,
+    warm_starts: Vec<Py<PyAny>>,
+    seeds: Vec<u64>,
+    steps: u64,
+    solvers: Vec<String>,
+    bodies: usize,
+    scene: String,
+    tolerance: f64,
+    max_iterations: u32,
+    norm: String,
+    guard: String,
+    threads: usize,
+    same_problems: Option<String>,
+) -> Result<Py<pyo3::types::PyBytes>, PythonBindingError> {
+    let args = compare::CompareArgs {
+        warm_starts,
+        seeds,
+        steps,
+        solvers,
+        bodies,
+        scene,
+        tolerance,
+        max_iterations,
+        norm,
+        guard,
+        threads,
+        out: None,
+        figures: false,
+        same_problems,
+    };
+    let bytes = parts::run_part(py, &args)?;
+    Ok(pyo3::types::PyBytes::new(py, &bytes).unbind())
+}
+
+/// Merges the parts of a comparison (every seed's runs exactly once) into the files and summary
+/// rows of the one-machine comparison; `total_threads` and `wall_seconds` are reported as its
+/// threads and wall time.
+#[pyfunction]
+#[pyo3(signature = (warm_starts, seeds, steps, solvers, bodies, scene, tolerance, max_iterations, norm, guard, threads, out, figures, same_problems, parts, total_threads, wall_seconds))]
+#[allow(clippy::too_many_arguments)]
+fn compare_merge(
+    py: Python<'_>,
+    warm_starts: Vec<Py<PyAny>>,
+    seeds: Vec<u64>,
+    steps: u64,
+    solvers: Vec<String>,
+    bodies: usize,
+    scene: String,
+    tolerance: f64,
+    max_iterations: u32,
+    norm: String,
+    guard: String,
+    threads: usize,
+    out: Option<std::path::PathBuf>,
+    figures: bool,
+    same_problems: Option<String>,
+    parts: Vec<Vec<u8>>,
+    total_threads: usize,
+    wall_seconds: f64,
+) -> Result<Py<pyo3::types::PyList>, PythonBindingError> {
+    let args = compare::CompareArgs {
+        warm_starts,
+        seeds,
+        steps,
+        solvers,
+        bodies,
+        scene,
+        tolerance,
+        max_iterations,
+        norm,
+        guard,
+        threads,
+        out,
+        figures,
+        same_problems,
+    };
+    parts::merge(py, &args, &parts, total_threads, wall_seconds)
+}
+
 /// The providers and solvers of the full registry: `(providers, solvers)`, each a list of
 /// `(name, help)` pairs.
 #[pyfunction]
@@ -93,6 +181,8 @@ fn _deepcontact(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<world::Island>()?;
     m.add_class::<island::IslandProblem>()?;
     m.add_function(wrap_pyfunction!(compare_summary, m)?)?;
+    m.add_function(wrap_pyfunction!(compare_part, m)?)?;
+    m.add_function(wrap_pyfunction!(compare_merge, m)?)?;
     m.add_function(wrap_pyfunction!(registry, m)?)?;
     m.add("DeepContactError", py.get_type::<error::DeepContactError>())?;
     m.add("WarmStartError", py.get_type::<error::WarmStartError>())?;
