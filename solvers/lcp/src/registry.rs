@@ -81,7 +81,7 @@ pub fn register(registry: &mut Registry) {
         "PGS (default settings), then semismooth Newton on the islands PGS leaves at its cap, \
          kept when its natural residual is lower; trigger=capped|stalled (every capped island, \
          or those whose impulse change did not fall by factor over the last window; default \
-         capped), window=100 (iterations), factor=2 (> 1), above=5 (only islands whose natural \
+         capped), window=100 (iterations; a cap below two windows is a budget, never rescued), factor=2 (> 1), above=5 (only islands whose natural \
          residual at the cap is above this multiple of the stop tolerance), start=best|iterate|zeros (Newton \
          from PGS's impulses, from zeros, or from zeros too when the first does not converge; \
          default best), newton_iterations=300, newton_tolerance=1e-6 (N·s)",

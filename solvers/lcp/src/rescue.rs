@@ -43,8 +43,9 @@ pub struct RescueSettings {
     pub newton: NewtonSettings,
     /// Which capped islands are finished by Newton (default [`RescueTrigger::Capped`]).
     pub trigger: RescueTrigger,
-    /// Iterations of the stall test's window (default 100, ≥ 1); used by
-    /// [`RescueTrigger::Stalled`].
+    /// Iterations of the stall test's window (default 100, ≥ 1). An island capped before
+    /// `2 × window` iterations is never handed to Newton: such a cap is a fixed budget of
+    /// passes, not a stall.
     pub window: u32,
     /// Decrease of the impulse change's envelope over one window below which the curve
     /// counts as stalled (default 2, > 1); used by [`RescueTrigger::Stalled`].
@@ -137,8 +138,9 @@ pub struct RescueStats {
     pub capped: u64,
     /// Capped islands whose curve the stall test marked as stalled.
     pub stalled: u64,
-    /// Capped islands left as PGS ended them: the trigger did not name them, or PGS's
-    /// natural residual was not above [`RescueSettings::above`] × the stop tolerance.
+    /// Capped islands left as PGS ended them: the trigger did not name them, PGS's natural
+    /// residual was not above [`RescueSettings::above`] × the stop tolerance, or the cap was
+    /// below `2 ×` [`RescueSettings::window`].
     pub skipped: u64,
     /// Islands handed to Newton.
     pub attempted: u64,
@@ -175,7 +177,8 @@ pub fn stalled(curve: &[Real], window: usize, factor: Real) -> bool {
 }
 
 /// PGS ([`PgsSolver`]) on every island; an island it leaves at its iteration cap with a
-/// natural residual above [`RescueSettings::above`] × the stop tolerance (and, with
+/// natural residual above [`RescueSettings::above`] × the stop tolerance, after at least
+/// `2 ×` [`RescueSettings::window`] iterations (and, with
 /// [`RescueTrigger::Stalled`], whose impulse-change curve stalled) is finished by semismooth
 /// Newton ([`NewtonSolver`]) from PGS's impulses or from zeros ([`RescueStart`]). Newton's
 /// result is kept only when its natural residual is below PGS's; otherwise PGS's impulses
@@ -257,8 +260,10 @@ impl PgsRescueSolver {
             RescueTrigger::Stalled => is_stalled,
         };
         let far = report.natural_residual > self.settings.above * settings.tolerance;
-        self.stats.skipped += u64::from(!(named && far));
-        named && far
+        let long = report.iterations as usize >= 2 * window;
+        let wanted = named && far && long;
+        self.stats.skipped += u64::from(!wanted);
+        wanted
     }
 
     /// One Newton solve from `self.trial_impulses`; its natural residual, or `None` when it

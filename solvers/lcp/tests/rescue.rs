@@ -126,6 +126,33 @@ fn a_cycling_island_is_finished_by_newton() {
     assert_eq!(report.residual_inf.len(), report.iterations as usize);
 }
 
+/// A cap below two windows is a fixed budget of passes: the island stays as PGS left it.
+#[test]
+fn a_fixed_budget_is_not_rescued() {
+    let (problem, start) = island(313, 149);
+    let budget = SolverSettings {
+        max_iterations: 16,
+        ..SolverSettings::default()
+    };
+    let mut rescue = PgsRescueSolver::new();
+    let mut impulses = start.clone();
+    let mut velocities = vec![Velocity::default(); problem.bodies.len()];
+    let mut report = SolveReport::default();
+    rescue
+        .solve(
+            &problem,
+            &budget,
+            &mut impulses,
+            &mut velocities,
+            &mut report,
+        )
+        .unwrap();
+    assert!(!report.converged && report.natural_residual > 1e-3);
+    assert_eq!(report.iterations, 16);
+    let stats = rescue.stats();
+    assert_eq!((stats.capped, stats.skipped, stats.attempted), (1, 1, 0));
+}
+
 /// An island PGS settles keeps PGS's bits and report; no Newton solve runs.
 #[test]
 fn a_converging_island_keeps_the_bits_of_plain_pgs() {
