@@ -22,7 +22,7 @@ fn assembly(p: &mut Params<'_>) -> Result<(AssemblyMode, usize), SpecError> {
 /// Registers `psor` (`omega=1`, `assembly=auto|dense|sparse`, `dense_threshold=128`),
 /// `newton` (`reg=1e-10`, `assembly`, `dense_threshold`) and `pgs-rescue`
 /// (`trigger=capped|stalled`, `window=100`, `factor=2`, `start=best|iterate|zeros`,
-/// `above=5`, `newton_iterations=300`, `newton_tolerance=1e-6`); defaults are
+/// `above=5`, `newton_iterations=300`, `newton_chunk=10`, `newton_progress=0.5`, `newton_tolerance=1e-6`); defaults are
 /// [`PsorSettings::default`], [`NewtonSettings::default`] and [`RescueSettings::default`].
 pub fn register(registry: &mut Registry) {
     registry.register_solver(
@@ -84,7 +84,9 @@ pub fn register(registry: &mut Registry) {
          capped), window=100 (iterations; a cap below two windows is a budget, never rescued), factor=2 (> 1), above=5 (only islands whose natural \
          residual at the cap is above this multiple of the stop tolerance), start=best|iterate|zeros (Newton \
          from PGS's impulses, from zeros, or from zeros too when the first does not converge; \
-         default best), newton_iterations=300, newton_tolerance=1e-6 (N·s)",
+         default best), newton_iterations=300 (per start), newton_chunk=10 and newton_progress=0.5 \
+         (Newton goes on after a chunk only if the natural residual fell below progress × its \
+         value after the chunk before), newton_tolerance=1e-6 (N·s)",
         |p| {
             let d = RescueSettings::default();
             let trigger = match p.choice("trigger", &["capped", "stalled"])? {
@@ -109,6 +111,9 @@ pub fn register(registry: &mut Registry) {
                     "too large",
                 )
             })?;
+            let newton_chunk = p.u64("newton_chunk", u64::from(d.newton_chunk))?;
+            let newton_chunk = u32::try_from(newton_chunk)
+                .map_err(|_| p.invalid("newton_chunk", &newton_chunk.to_string(), "too large"))?;
             let settings = RescueSettings {
                 trigger,
                 start,
@@ -116,6 +121,8 @@ pub fn register(registry: &mut Registry) {
                 factor: p.f64("factor", d.factor)?,
                 above: p.f64("above", d.above)?,
                 newton_iterations,
+                newton_chunk,
+                newton_progress: p.f64("newton_progress", d.newton_progress)?,
                 newton_tolerance: p.f64("newton_tolerance", d.newton_tolerance)?,
                 ..d
             };

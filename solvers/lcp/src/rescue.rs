@@ -59,6 +59,14 @@ pub struct RescueSettings {
     pub start: RescueStart,
     /// Iteration cap of each Newton solve (default 300, ≥ 1).
     pub newton_iterations: u32,
+    /// Newton runs in chunks of this many iterations (default 10, ≥ 1); after each chunk
+    /// that did not converge it goes on only when the natural residual fell below
+    /// [`Self::newton_progress`] × its value after the chunk before (after the first chunk:
+    /// × PGS's).
+    pub newton_chunk: u32,
+    /// Factor by which each Newton chunk after the first must lower the natural residual
+    /// for the solve to go on (default 0.5, in (0, 1]).
+    pub newton_progress: Real,
     /// Stop tolerance of the Newton solve on `max |Δλ|` and on the natural residual (N·s;
     /// default 1e-6, ≥ 0).
     pub newton_tolerance: Real,
@@ -75,6 +83,8 @@ impl Default for RescueSettings {
             above: 5.0,
             start: RescueStart::Best,
             newton_iterations: 300,
+            newton_chunk: 10,
+            newton_progress: 0.5,
             newton_tolerance: 1e-6,
         }
     }
@@ -118,6 +128,18 @@ impl RescueSettings {
             Real::from(self.newton_iterations),
             self.newton_iterations >= 1,
             "must be >= 1",
+        )?;
+        check(
+            "newton_chunk",
+            Real::from(self.newton_chunk),
+            self.newton_chunk >= 1,
+            "must be >= 1",
+        )?;
+        check(
+            "newton_progress",
+            self.newton_progress,
+            self.newton_progress > 0.0 && self.newton_progress <= 1.0,
+            "must be in (0, 1]",
         )?;
         check(
             "newton_tolerance",
@@ -235,10 +257,10 @@ impl PgsRescueSolver {
         self.stats
     }
 
-    /// The stop rule of each Newton solve.
-    fn newton_stop(&self) -> SolverSettings {
+    /// The stop rule of a Newton chunk of `iterations`.
+    fn newton_stop(&self, iterations: u32) -> SolverSettings {
         SolverSettings {
-            max_iterations: self.settings.newton_iterations,
+            max_iterations: iterations,
             tolerance: self.settings.newton_tolerance,
             norm: ResidualNorm::Infinity,
             min_iterations: 1,
@@ -266,10 +288,11 @@ impl PgsRescueSolver {
         wanted
     }
 
-    /// One Newton solve from `self.trial_impulses`; its natural residual, or `None` when it
-    /// failed. The result is left in the trial buffers and `self.newton_report`.
-    fn newton_from_trial(&mut self, problem: &ContactProblem) -> Option<Real> {
-        let stop = self.newton_stop();
+    /// One Newton solve of at most `iterations` from `self.trial_impulses`; its natural
+    /// residual, or `None` when it failed. The result is left in the trial buffers and
+    /// `self.newton_report`.
+    fn newton_from_trial(&mut self, problem: &ContactProblem, iterations: u32) -> Option<Real> {
+        let stop = self.newton_stop(iterations);
         let outcome = self.newton.solve_lcp(
             problem,
             &stop,
@@ -306,7 +329,8 @@ impl PgsRescueSolver {
         report: &mut SolveReport,
     ) {
         self.stats.attempted += 1;
-        let mut best = report.natural_residual;
+        let pgs_residual = report.natural_residual;
+        let mut best = pgs_residual;
         let mut kept = false;
         self.saved_impulses.clear();
         self.saved_impulses.extend_from_slice(impulses);
@@ -328,8 +352,24 @@ impl PgsRescueSolver {
             self.trial_velocities.clear();
             self.trial_velocities
                 .resize(self.saved_velocities.len(), Velocity::default());
-            let residual = self.newton_from_trial(problem);
-            self.append_newton(report);
+            let mut left = self.settings.newton_iterations;
+            let mut last = pgs_residual;
+            let mut residual = None;
+            while left > 0 {
+                let chunk = left.min(self.settings.newton_chunk);
+                left -= chunk;
+                residual = self.newton_from_trial(problem, chunk);
+                self.append_newton(report);
+                match residual {
+                    Some(r)
+                        if !self.newton_report.converged
+                            && r < last * self.settings.newton_progress =>
+                    {
+                        last = r;
+                    }
+                    _ => break,
+                }
+            }
             if let Some(r) = residual
                 && r < best
             {

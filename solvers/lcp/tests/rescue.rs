@@ -191,6 +191,14 @@ fn bad_parameters_give_typed_errors() {
             ..RescueSettings::default()
         },
         RescueSettings {
+            newton_chunk: 0,
+            ..RescueSettings::default()
+        },
+        RescueSettings {
+            newton_progress: 1.5,
+            ..RescueSettings::default()
+        },
+        RescueSettings {
             newton_tolerance: Real::NAN,
             start: RescueStart::Zeros,
             ..RescueSettings::default()
@@ -201,6 +209,8 @@ fn bad_parameters_give_typed_errors() {
         "factor",
         "above",
         "newton_iterations",
+        "newton_chunk",
+        "newton_progress",
         "newton_tolerance",
     ]) {
         match settings.validate() {
@@ -232,6 +242,8 @@ fn bad_parameters_give_typed_errors() {
         ("pgs-rescue:above=-2", "above"),
         ("pgs-rescue:newton_iterations=0", "newton_iterations"),
         ("pgs-rescue:newton_tolerance=-1", "newton_tolerance"),
+        ("pgs-rescue:newton_chunk=0", "newton_chunk"),
+        ("pgs-rescue:newton_progress=0", "newton_progress"),
         ("pgs-rescue:start=middle", "start"),
         ("pgs-rescue:trigger=never", "trigger"),
     ] {
