@@ -22,7 +22,7 @@ fn assembly(p: &mut Params<'_>) -> Result<(AssemblyMode, usize), SpecError> {
 /// Registers `psor` (`omega=1`, `assembly=auto|dense|sparse`, `dense_threshold=128`),
 /// `newton` (`reg=1e-10`, `assembly`, `dense_threshold`) and `pgs-rescue`
 /// (`trigger=capped|stalled`, `window=100`, `factor=2`, `start=best|iterate|zeros`,
-/// `above=5`, `newton_iterations=300`, `newton_chunk=10`, `newton_progress=0.5`, `newton_tolerance=1e-6`); defaults are
+/// `above=5`, `newton_iterations=300`, `newton_chunk=300`, `newton_progress=0.5`, `newton_tolerance=1e-6`); defaults are
 /// [`PsorSettings::default`], [`NewtonSettings::default`] and [`RescueSettings::default`].
 pub fn register(registry: &mut Registry) {
     registry.register_solver(
@@ -84,9 +84,9 @@ pub fn register(registry: &mut Registry) {
          capped), window=100 (iterations; a cap below two windows is a budget, never rescued), factor=2 (> 1), above=5 (only islands whose natural \
          residual at the cap is above this multiple of the stop tolerance), start=best|iterate|zeros (Newton \
          from PGS's impulses, from zeros, or from zeros too when the first does not converge; \
-         default best), newton_iterations=300 (per start), newton_chunk=10 and newton_progress=0.5 \
-         (Newton goes on after a chunk only if the natural residual fell below progress × its \
-         value after the chunk before), newton_tolerance=1e-6 (N·s)",
+         default best), newton_iterations=300 (per start), newton_chunk=300 and newton_progress=0.5 \
+         (Newton goes on after a chunk only if the natural residual fell below progress × \
+         its value after the chunk before, after the first × PGS's; 300: one solve per start), newton_tolerance=1e-6 (N·s)",
         |p| {
             let d = RescueSettings::default();
             let trigger = match p.choice("trigger", &["capped", "stalled"])? {

@@ -59,10 +59,13 @@ pub struct RescueSettings {
     pub start: RescueStart,
     /// Iteration cap of each Newton solve (default 300, ≥ 1).
     pub newton_iterations: u32,
-    /// Newton runs in chunks of this many iterations (default 10, ≥ 1); after each chunk
-    /// that did not converge it goes on only when the natural residual fell below
+    /// Newton runs in chunks of this many iterations (≥ 1); after a chunk that did not
+    /// converge it goes on only when the natural residual fell below
     /// [`Self::newton_progress`] × its value after the chunk before (after the first chunk:
-    /// × PGS's).
+    /// × PGS's). Default 300 (= [`Self::newton_iterations`]: one solve per start). Short
+    /// chunks (10) stop hopeless solves early on large islands (the 20-row pyramid), but
+    /// also stop some that would have converged on the piles (Newton's natural residual does
+    /// not fall monotonically) and each chunk restarts Newton's regularisation.
     pub newton_chunk: u32,
     /// Factor by which each Newton chunk after the first must lower the natural residual
     /// for the solve to go on (default 0.5, in (0, 1]).
@@ -83,7 +86,7 @@ impl Default for RescueSettings {
             above: 5.0,
             start: RescueStart::Best,
             newton_iterations: 300,
-            newton_chunk: 10,
+            newton_chunk: 300,
             newton_progress: 0.5,
             newton_tolerance: 1e-6,
         }
