@@ -22,7 +22,7 @@
 //! * [`solve_exact`] — enumeration of contact states for a few points, the oracle of the
 //!   tests, and [`violation`], a checker of the complementarity conditions.
 //!
-//! Both solvers implement [`deepcontact_core::VelocitySolver`] and report per iteration
+//! `psor` and `newton` implement [`deepcontact_core::VelocitySolver`] and report per iteration
 //! `max |Δλ|` and `sqrt(Σ Δλ²)`, the natural-map residual (in impulse units, as PGS), the
 //! iteration count and the wall time, so the stop rule of
 //! [`deepcontact_core::SolverSettings`] and every figure work unchanged. Errors are

@@ -255,7 +255,8 @@ impl PgsRescueSolver {
         }
     }
 
-    /// Counters since the solver was made.
+    /// Counters since the solver was made (a fork from [`VelocitySolver::fork`] counts its
+    /// own).
     pub fn stats(&self) -> RescueStats {
         self.stats
     }
