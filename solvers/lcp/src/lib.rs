@@ -17,8 +17,9 @@
 //!   sweep; it starts from the warm start like every solver here.
 //! * [`PgsRescueSolver`] (`"pgs-rescue"`) — deepcontact-pgs's PGS on every island, and
 //!   semismooth Newton (from PGS's impulses or from zeros) on the islands PGS leaves at its
-//!   cap — the ~1 % of pile problems on which it cycles from every start; Newton's result
-//!   is kept only when its natural residual is lower. Islands PGS settles keep its bits.
+//!   cap with a natural residual above 5 × the stop tolerance — on the piles, mostly the
+//!   ~1 % of problems on which PGS cycles from every start; Newton's result is kept only
+//!   when its natural residual is lower. Islands PGS settles keep its bits.
 //! * [`solve_exact`] — enumeration of contact states for a few points, the oracle of the
 //!   tests, and [`violation`], a checker of the complementarity conditions.
 //!
