@@ -22,7 +22,7 @@ pub fn scene_for(
 
 /// Every scene, provider and solver this build knows: the scenes of
 /// [`deepcontact_core::scene`] (`pile`, `box-pile`, `pyramid`, ...), `pgs` (deepcontact-pgs),
-/// `psor` and `newton`
+/// `psor`, `newton` and `pgs-rescue`
 /// (deepcontact-lcp), the soft step `soft` (deepcontact-soft), the baselines (deepcontact-warmstart), `grid` (deepcontact-grid), the
 /// contact-graph network `graph` and `graph-file:` (deepcontact-graph) and,
 /// with the `onnx` feature, the CNNs `pressure`, `peak` and `onnx:` (deepcontact-onnx).

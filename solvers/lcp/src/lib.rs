@@ -15,10 +15,15 @@
 //!   order and update lists worked out once per solve) with a growing regularisation for
 //!   redundant contacts, and a projected Armijo line search that falls back to one PGS
 //!   sweep; it starts from the warm start like every solver here.
+//! * [`PgsRescueSolver`] (`"pgs-rescue"`) — deepcontact-pgs's PGS on every island, and
+//!   semismooth Newton (from PGS's impulses or from zeros) on the islands PGS leaves at its
+//!   cap with a natural residual above 5 × the stop tolerance — on the piles, mostly the
+//!   ~1 % of problems on which PGS cycles from every start; Newton's result is kept only
+//!   when its natural residual is lower. Islands PGS settles keep its bits.
 //! * [`solve_exact`] — enumeration of contact states for a few points, the oracle of the
 //!   tests, and [`violation`], a checker of the complementarity conditions.
 //!
-//! Both solvers implement [`deepcontact_core::VelocitySolver`] and report per iteration
+//! `psor` and `newton` implement [`deepcontact_core::VelocitySolver`] and report per iteration
 //! `max |Δλ|` and `sqrt(Σ Δλ²)`, the natural-map residual (in impulse units, as PGS), the
 //! iteration count and the wall time, so the stop rule of
 //! [`deepcontact_core::SolverSettings`] and every figure work unchanged. Errors are
@@ -32,6 +37,7 @@ mod exact;
 mod newton;
 mod psor;
 mod registry;
+mod rescue;
 
 pub use assembly::{AssemblyMode, DEFAULT_DENSE_THRESHOLD, Delassus, MAX_DENSE_ROWS};
 pub use error::LcpError;
@@ -42,3 +48,6 @@ pub use exact::{
 pub use newton::{NewtonSettings, NewtonSolver, NewtonStats, RETRY_REGULARIZATION};
 pub use psor::{PsorSettings, PsorSolver};
 pub use registry::register;
+pub use rescue::{
+    PgsRescueSolver, RescueSettings, RescueStart, RescueStats, RescueTrigger, stalled,
+};

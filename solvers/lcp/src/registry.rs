@@ -1,10 +1,11 @@
-//! Registration of `psor` and `newton`.
+//! Registration of `psor`, `newton` and `pgs-rescue`.
 
 use deepcontact_core::VelocitySolver;
 use deepcontact_core::registry::{Params, Registry, SpecError};
 
 use crate::{
-    AssemblyMode, DEFAULT_DENSE_THRESHOLD, NewtonSettings, NewtonSolver, PsorSettings, PsorSolver,
+    AssemblyMode, DEFAULT_DENSE_THRESHOLD, LcpError, NewtonSettings, NewtonSolver, PgsRescueSolver,
+    PsorSettings, PsorSolver, RescueSettings, RescueStart, RescueTrigger,
 };
 
 /// The shared `assembly=auto|dense|sparse` and `dense_threshold=` parameters.
@@ -18,9 +19,11 @@ fn assembly(p: &mut Params<'_>) -> Result<(AssemblyMode, usize), SpecError> {
     Ok((mode, usize::try_from(threshold).unwrap_or(usize::MAX)))
 }
 
-/// Registers `psor` (`omega=1`, `assembly=auto|dense|sparse`, `dense_threshold=128`) and
-/// `newton` (`reg=1e-10`, `assembly`, `dense_threshold`); defaults are
-/// [`PsorSettings::default`] and [`NewtonSettings::default`].
+/// Registers `psor` (`omega=1`, `assembly=auto|dense|sparse`, `dense_threshold=128`),
+/// `newton` (`reg=1e-10`, `assembly`, `dense_threshold`) and `pgs-rescue`
+/// (`trigger=capped|stalled`, `window=100`, `factor=2`, `start=best|iterate|zeros`,
+/// `above=5`, `newton_iterations=300`, `newton_chunk=300`, `newton_progress=0.5`, `newton_tolerance=1e-6`); defaults are
+/// [`PsorSettings::default`], [`NewtonSettings::default`] and [`RescueSettings::default`].
 pub fn register(registry: &mut Registry) {
     registry.register_solver(
         "psor",
@@ -71,6 +74,69 @@ pub fn register(registry: &mut Registry) {
                 .validate()
                 .map_err(|e| p.invalid("reg", &regularization.to_string(), e.to_string()))?;
             Ok(Box::new(NewtonSolver::with_settings(settings)) as Box<dyn VelocitySolver>)
+        },
+    );
+    registry.register_solver(
+        "pgs-rescue",
+        "PGS (default settings), then semismooth Newton on the islands PGS leaves at its cap, \
+         kept when its natural residual is lower; trigger=capped|stalled (every capped island, \
+         or those whose impulse change did not fall by factor over the last window; default \
+         capped), window=100 (iterations; a cap below two windows is a budget, never rescued), factor=2 (> 1), above=5 (only islands whose natural \
+         residual at the cap is above this multiple of the stop tolerance), start=best|iterate|zeros (Newton \
+         from PGS's impulses, from zeros, or from zeros too when the first does not converge; \
+         default best), newton_iterations=300 (per start), newton_chunk=300 and newton_progress=0.5 \
+         (Newton goes on after a chunk only if the natural residual fell below progress × \
+         its value after the chunk before, after the first × PGS's; 300: one solve per start), newton_tolerance=1e-6 (N·s)",
+        |p| {
+            let d = RescueSettings::default();
+            let trigger = match p.choice("trigger", &["capped", "stalled"])? {
+                None => d.trigger,
+                Some("stalled") => RescueTrigger::Stalled,
+                Some(_) => RescueTrigger::Capped,
+            };
+            let start = match p.choice("start", &["best", "iterate", "zeros"])? {
+                None => d.start,
+                Some("iterate") => RescueStart::Iterate,
+                Some("zeros") => RescueStart::Zeros,
+                Some(_) => RescueStart::Best,
+            };
+            let window = p.u64("window", u64::from(d.window))?;
+            let window = u32::try_from(window)
+                .map_err(|_| p.invalid("window", &window.to_string(), "too large"))?;
+            let newton_iterations = p.u64("newton_iterations", u64::from(d.newton_iterations))?;
+            let newton_iterations = u32::try_from(newton_iterations).map_err(|_| {
+                p.invalid(
+                    "newton_iterations",
+                    &newton_iterations.to_string(),
+                    "too large",
+                )
+            })?;
+            let newton_chunk = p.u64("newton_chunk", u64::from(d.newton_chunk))?;
+            let newton_chunk = u32::try_from(newton_chunk)
+                .map_err(|_| p.invalid("newton_chunk", &newton_chunk.to_string(), "too large"))?;
+            let settings = RescueSettings {
+                trigger,
+                start,
+                window,
+                factor: p.f64("factor", d.factor)?,
+                above: p.f64("above", d.above)?,
+                newton_iterations,
+                newton_chunk,
+                newton_progress: p.f64("newton_progress", d.newton_progress)?,
+                newton_tolerance: p.f64("newton_tolerance", d.newton_tolerance)?,
+                ..d
+            };
+            if let Err(e) = settings.validate() {
+                return Err(match e {
+                    LcpError::InvalidSetting {
+                        name,
+                        value,
+                        reason,
+                    } => p.invalid(name, &value.to_string(), reason),
+                    other => p.invalid("newton", "default", other.to_string()),
+                });
+            }
+            Ok(Box::new(PgsRescueSolver::with_settings(settings)) as Box<dyn VelocitySolver>)
         },
     );
 }

@@ -1,0 +1,256 @@
+//! `pgs-rescue` on a recorded island where PGS cycles, on one it settles, and with bad
+//! parameters.
+
+use deepcontact_core::math::Real;
+use deepcontact_core::registry::{Registry, SpecError};
+use deepcontact_core::{
+    CarriedWarmStart, ContactProblem, CoreError, Impulse, IslandSolve, SolveReport, SolverSettings,
+    Velocity, VelocitySolver, WorldSettings, scene,
+};
+use deepcontact_lcp::{LcpError, PgsRescueSolver, RescueSettings, RescueStart, stalled};
+use deepcontact_pgs::{PgsPositionSolver, PgsSolver};
+
+/// PGS that keeps a copy of the largest island of each step and its start.
+struct Recorder {
+    pgs: PgsSolver,
+    largest: Option<(ContactProblem, Vec<Impulse>)>,
+}
+
+impl VelocitySolver for Recorder {
+    fn name(&self) -> &str {
+        "recorder"
+    }
+
+    fn solve(
+        &mut self,
+        problem: &ContactProblem,
+        settings: &SolverSettings,
+        impulses: &mut [Impulse],
+        velocities: &mut [Velocity],
+        report: &mut SolveReport,
+    ) -> Result<(), CoreError> {
+        self.solve_many(
+            settings,
+            &mut [IslandSolve::new(problem, impulses, velocities, report)],
+        );
+        Ok(())
+    }
+
+    fn solve_many(&mut self, settings: &SolverSettings, islands: &mut [IslandSolve<'_>]) {
+        self.largest = islands
+            .iter()
+            .max_by_key(|i| i.problem.len())
+            .map(|i| (i.problem.clone(), i.impulses.to_vec()));
+        self.pgs.solve_many(settings, islands);
+    }
+}
+
+/// The largest island of step `step` of the 100-circle pile of `seed`, stepped with PGS and
+/// the carried warm start, with its start.
+fn island(seed: u64, step: u64) -> (ContactProblem, Vec<Impulse>) {
+    let mut world = scene::pile(seed, 100)
+        .unwrap()
+        .build(WorldSettings::default())
+        .unwrap();
+    let mut recorder = Recorder {
+        pgs: PgsSolver::new(),
+        largest: None,
+    };
+    let mut position = PgsPositionSolver::new();
+    for _ in 0..=step {
+        world
+            .step(&mut CarriedWarmStart, &mut recorder, &mut position)
+            .unwrap();
+    }
+    recorder.largest.unwrap()
+}
+
+fn solve(
+    solver: &mut dyn VelocitySolver,
+    problem: &ContactProblem,
+    start: &[Impulse],
+) -> (Vec<Impulse>, Vec<Velocity>, SolveReport) {
+    let mut impulses = start.to_vec();
+    let mut velocities = vec![Velocity::default(); problem.bodies.len()];
+    let mut report = SolveReport::default();
+    solver
+        .solve(
+            problem,
+            &SolverSettings::default(),
+            &mut impulses,
+            &mut velocities,
+            &mut report,
+        )
+        .unwrap();
+    (impulses, velocities, report)
+}
+
+fn bits(impulses: &[Impulse], velocities: &[Velocity]) -> Vec<u64> {
+    impulses
+        .iter()
+        .flat_map(|i| [i.normal.to_bits(), i.tangent.to_bits()])
+        .chain(velocities.iter().flat_map(|v| {
+            [
+                v.linear.x.to_bits(),
+                v.linear.y.to_bits(),
+                v.angular.to_bits(),
+            ]
+        }))
+        .collect()
+}
+
+/// Seed 313, step 149 of the carried start's world: PGS cycles there from every start and
+/// stops at its cap far from a solution; the rescue finishes it below 1e-6.
+#[test]
+fn a_cycling_island_is_finished_by_newton() {
+    let (problem, start) = island(313, 149);
+    let (_, _, plain) = solve(&mut PgsSolver::new(), &problem, &start);
+    assert!(!plain.converged, "PGS settles the recorded island");
+    assert!(
+        plain.natural_residual > 1e-3,
+        "PGS ends close to a solution: {:e}",
+        plain.natural_residual
+    );
+    assert!(stalled(&plain.residual_inf, 100, 2.0), "the curve falls");
+    let mut rescue = PgsRescueSolver::new();
+    let (_, _, report) = solve(&mut rescue, &problem, &start);
+    let stats = rescue.stats();
+    assert_eq!((stats.attempted, stats.rescued), (1, 1), "{stats:?}");
+    assert!(report.converged);
+    assert!(
+        report.natural_residual < 1e-6,
+        "natural residual {:e} after the rescue",
+        report.natural_residual
+    );
+    assert!(report.iterations > plain.iterations);
+    assert_eq!(report.residual_inf.len(), report.iterations as usize);
+}
+
+/// A cap below two windows is a fixed budget of passes: the island stays as PGS left it.
+#[test]
+fn a_fixed_budget_is_not_rescued() {
+    let (problem, start) = island(313, 149);
+    let budget = SolverSettings {
+        max_iterations: 16,
+        ..SolverSettings::default()
+    };
+    let mut rescue = PgsRescueSolver::new();
+    let mut impulses = start.clone();
+    let mut velocities = vec![Velocity::default(); problem.bodies.len()];
+    let mut report = SolveReport::default();
+    rescue
+        .solve(
+            &problem,
+            &budget,
+            &mut impulses,
+            &mut velocities,
+            &mut report,
+        )
+        .unwrap();
+    assert!(!report.converged && report.natural_residual > 1e-3);
+    assert_eq!(report.iterations, 16);
+    let stats = rescue.stats();
+    assert_eq!((stats.capped, stats.skipped, stats.attempted), (1, 1, 0));
+}
+
+/// An island PGS settles keeps PGS's bits and report; no Newton solve runs.
+#[test]
+fn a_converging_island_keeps_the_bits_of_plain_pgs() {
+    let (problem, start) = island(313, 60);
+    let (pi, pv, plain) = solve(&mut PgsSolver::new(), &problem, &start);
+    assert!(plain.converged && plain.iterations > 1, "{plain:?}");
+    let mut rescue = PgsRescueSolver::new();
+    let (ri, rv, report) = solve(&mut rescue, &problem, &start);
+    assert_eq!(rescue.stats().attempted, 0);
+    assert_eq!(bits(&pi, &pv), bits(&ri, &rv));
+    assert_eq!(report.iterations, plain.iterations);
+    assert_eq!(report.residual_inf, plain.residual_inf);
+    assert_eq!(
+        report.natural_residual.to_bits(),
+        plain.natural_residual.to_bits()
+    );
+}
+
+#[test]
+fn bad_parameters_give_typed_errors() {
+    let bad = [
+        RescueSettings {
+            window: 0,
+            ..RescueSettings::default()
+        },
+        RescueSettings {
+            factor: 1.0,
+            ..RescueSettings::default()
+        },
+        RescueSettings {
+            above: -1.0,
+            ..RescueSettings::default()
+        },
+        RescueSettings {
+            newton_iterations: 0,
+            ..RescueSettings::default()
+        },
+        RescueSettings {
+            newton_chunk: 0,
+            ..RescueSettings::default()
+        },
+        RescueSettings {
+            newton_progress: 1.5,
+            ..RescueSettings::default()
+        },
+        RescueSettings {
+            newton_tolerance: Real::NAN,
+            start: RescueStart::Zeros,
+            ..RescueSettings::default()
+        },
+    ];
+    for (settings, name) in bad.iter().zip([
+        "window",
+        "factor",
+        "above",
+        "newton_iterations",
+        "newton_chunk",
+        "newton_progress",
+        "newton_tolerance",
+    ]) {
+        match settings.validate() {
+            Err(LcpError::InvalidSetting { name: n, .. }) => assert_eq!(n, name),
+            other => panic!("{name}: {other:?}"),
+        }
+        let mut solver = PgsRescueSolver::with_settings(*settings);
+        let problem = ContactProblem::new();
+        let err = solver
+            .solve(
+                &problem,
+                &SolverSettings::default(),
+                &mut [],
+                &mut [],
+                &mut SolveReport::default(),
+            )
+            .unwrap_err();
+        assert!(
+            matches!(err, CoreError::InvalidSetting { name: n, .. } if n == name),
+            "{err:?}"
+        );
+    }
+    let mut registry = Registry::empty();
+    deepcontact_lcp::register(&mut registry);
+    assert!(registry.build_solver("pgs-rescue").is_ok());
+    for (spec, param) in [
+        ("pgs-rescue:window=0", "window"),
+        ("pgs-rescue:factor=0.5", "factor"),
+        ("pgs-rescue:above=-2", "above"),
+        ("pgs-rescue:newton_iterations=0", "newton_iterations"),
+        ("pgs-rescue:newton_tolerance=-1", "newton_tolerance"),
+        ("pgs-rescue:newton_chunk=0", "newton_chunk"),
+        ("pgs-rescue:newton_progress=0", "newton_progress"),
+        ("pgs-rescue:start=middle", "start"),
+        ("pgs-rescue:trigger=never", "trigger"),
+    ] {
+        match registry.build_solver(spec) {
+            Err(SpecError::InvalidParameter { param: p, .. }) => assert_eq!(p, param, "{spec}"),
+            Err(e) => panic!("{spec}: {e:?}"),
+            Ok(_) => panic!("{spec} accepted"),
+        }
+    }
+}
