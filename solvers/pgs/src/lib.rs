@@ -33,23 +33,14 @@
 //! either way.
 #![warn(missing_docs)]
 
-mod domain_sweep;
-mod partition;
 mod position;
-mod position_chunked;
-mod position_domains;
 mod registry;
-mod sync;
+mod threads;
 mod velocity;
-mod velocity_chunked;
-mod velocity_domains;
-mod velocity_lanes;
-mod velocity_many;
-mod z_order;
 
-pub use partition::MAX_DOMAINS;
 pub use position::{PgsPositionSettings, PgsPositionSolver};
 pub use registry::{MAX_THREADS, register};
+pub use threads::partition::MAX_DOMAINS;
 pub use velocity::{LANES, Ordering, PgsSettings, PgsSolver};
 
 /// Errors of this crate (wrapped into [`deepcontact_core::CoreError`] at the trait boundary).

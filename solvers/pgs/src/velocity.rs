@@ -8,7 +8,10 @@
 //! iterate, end). One concept per submodule: `layout` (rows, manifolds, batches), `plan`
 //! (colouring and batching), `sweep` (one sweep's arithmetic), `measures` (what a sweep
 //! measures, the stop rule's verdict), `kernel` (the instruction set chosen at run time) and
-//! `avx2` (the batch sweep in AVX2 intrinsics).
+//! `avx2` (the batch sweep in AVX2 intrinsics). The sweep's variants each have one too:
+//! `chunked` (colour by colour in fixed chunks on threads), `domains` (the domain plan),
+//! `lanes` (small islands packed into the lanes of shared batches) and `many` (a step's islands
+//! solved together).
 
 use std::time::Instant;
 
@@ -22,8 +25,12 @@ use crate::PgsError;
 
 #[cfg(target_arch = "x86_64")]
 mod avx2;
+mod chunked;
+mod domains;
 mod kernel;
+mod lanes;
 mod layout;
+mod many;
 mod measures;
 mod plan;
 mod sweep;
@@ -98,7 +105,7 @@ impl Default for PgsSettings {
             threads: 1,
             parallel_min_points: 2048,
             domains: 16,
-            chunk: crate::velocity_chunked::CHUNK,
+            chunk: crate::velocity::chunked::CHUNK,
         }
     }
 }
@@ -137,18 +144,18 @@ pub struct PgsSolver {
     pub(crate) segments: Vec<Segment>,
     /// For the chunked plan, the bodies of `vel` renumbered in Z-order of their positions (so
     /// that neighbours share cache lines); inactive: the problem's order.
-    bodies: crate::z_order::Renumbering,
+    bodies: crate::threads::z_order::Renumbering,
     /// The instruction set the sweep loops run in, detected once when the solver is made:
     /// AVX2 + FMA (x86-64-v3) where the CPU has them, else the baseline. Same bits either way.
     pub(crate) arch: pulp::Arch,
     /// The domain plan's domains ([`PgsSettings::domains`]; empty otherwise).
-    domains: crate::velocity_domains::Domains,
-    /// The solvers of the small islands solved together ([`crate::velocity_lanes`]), one per
+    domains: crate::velocity::domains::Domains,
+    /// The solvers of the small islands solved together ([`crate::velocity::lanes`]), one per
     /// island of a step, kept for the next.
     pub(crate) lane_solvers: Vec<PgsSolver>,
     /// The small islands of a step (their indices), and how each is swept.
     pub(crate) small_islands: Vec<usize>,
-    pub(crate) small_kinds: Vec<crate::velocity_lanes::Kind>,
+    pub(crate) small_kinds: Vec<crate::velocity::lanes::Kind>,
     /// The most threads one island's sweep has run on ([`Self::threads_used`]).
     pub(crate) threads_used: usize,
 }
@@ -183,7 +190,7 @@ impl PgsSolver {
         // The chunked plan's grid (none for the plain sweep: not a pass over the points more).
         let z = self
             .plans_chunked(problem.points.len())
-            .then(|| crate::z_order::ZOrder::of(&problem.points));
+            .then(|| crate::threads::z_order::ZOrder::of(&problem.points));
         match &z {
             Some(z) => self.bodies.build(z, &problem.bodies),
             None => self.bodies.clear(),
@@ -270,7 +277,7 @@ impl PgsSolver {
     }
 
     /// Whether an island of `points` contact points is swept in the chunked plan of
-    /// [`crate::velocity_chunked`] (coloured, laned, and large enough).
+    /// [`crate::velocity::chunked`] (coloured, laned, and large enough).
     pub(crate) fn plans_chunked(&self, points: usize) -> bool {
         self.settings.ordering == Ordering::Coloured
             && self.settings.lanes
@@ -278,7 +285,7 @@ impl PgsSolver {
     }
 
     /// Whether an island of `points` contact points is swept in the domain plan of
-    /// [`crate::velocity_domains`].
+    /// [`crate::velocity::domains`].
     fn plans_domains(&self, points: usize) -> bool {
         self.plans_chunked(points) && self.settings.domains > 0
     }
@@ -472,14 +479,14 @@ impl PgsSolver {
         let (it, verdict, threads) = if self.plans_domains(points) {
             self.domains.build(
                 self.settings.domains,
-                crate::sync::effective_threads(self.settings.threads),
+                crate::threads::sync::effective_threads(self.settings.threads),
                 &self.manifolds,
                 &self.rows,
                 &self.vel,
                 self.settings,
             );
             let run = self.domains.solve(
-                crate::sync::effective_threads(self.settings.threads),
+                crate::threads::sync::effective_threads(self.settings.threads),
                 self.arch,
                 settings,
                 report,
@@ -487,8 +494,8 @@ impl PgsSolver {
             self.domains.write_back(&mut self.rows, &mut self.vel);
             run
         } else if self.plans_chunked(points) && !self.segments.is_empty() {
-            crate::velocity_chunked::solve_chunked(
-                &mut crate::velocity_chunked::Sweepable {
+            crate::velocity::chunked::solve_chunked(
+                &mut crate::velocity::chunked::Sweepable {
                     batches: &mut self.batches,
                     segments: &self.segments,
                     serial: &self.scratch,
@@ -496,7 +503,7 @@ impl PgsSolver {
                     vel: &mut self.vel,
                 },
                 self.settings.chunk.max(1),
-                crate::sync::effective_threads(self.settings.threads),
+                crate::threads::sync::effective_threads(self.settings.threads),
                 self.arch,
                 settings,
                 report,
@@ -839,8 +846,8 @@ mod tests {
         same_bits_on_one_to_five_threads(
             PgsSettings::default(),
             |solver, threads, stop, report| {
-                let run = crate::velocity_chunked::solve_chunked(
-                    &mut crate::velocity_chunked::Sweepable {
+                let run = crate::velocity::chunked::solve_chunked(
+                    &mut crate::velocity::chunked::Sweepable {
                         batches: &mut solver.batches,
                         segments: &solver.segments,
                         serial: &solver.scratch,

@@ -3,7 +3,7 @@
 //! A small island's sweep is a short chain of dependent operations repeated every iteration
 //! on the same few bodies, so the core idles on its latency. Small islands share nothing, so
 //! their sweeps can overlap: they are packed into the lanes of shared batches
-//! ([`crate::velocity_lanes`]). Each island keeps its own buffers (a solver of its own), its
+//! ([`crate::velocity::lanes`]). Each island keeps its own buffers (a solver of its own), its
 //! own stop rule and iteration count, and its measures folded in its own order: each ends
 //! with the bits it would have alone.
 //!
