@@ -15,7 +15,9 @@
 //! Both engines are first settled for the same number of steps from the same bodies; each
 //! benchmark then keeps stepping its own world. Before the benchmarks, the solver-only cost
 //! (ns per solver contact point per pass, velocity solve of each engine) is printed for
-//! every configuration, measured in turn over the same number of steps.
+//! every configuration, measured in turn over the same number of steps, and then the slope
+//! (`slope.rs`): what one more pass costs each engine, from whole steps at 100 and 1 000
+//! passes in turns, with the ratio ours / rapier2d.
 
 use criterion::{BenchmarkId, Criterion, SamplingMode, Throughput};
 use deepcontact_benches::{SEED, fixed_world};
@@ -23,10 +25,14 @@ use deepcontact_core::{CarriedWarmStart, World, WorldSettings, scene};
 use deepcontact_pgs::{PgsPositionSolver, PgsSolver};
 
 use super::rapier_pile::{RapierConfig, RapierPile};
+use super::slope;
 use super::{peer_sizes, settle_steps};
 
 /// Velocity iterations (passes) of the fixed-count comparison.
 pub const ITERATIONS: u32 = 10;
+
+/// Rounds of the slope printed before the benchmarks.
+const SLOPE_ROUNDS: u32 = 9;
 
 /// Steps timed for the solver-only figures printed before the benchmarks.
 const SOLVER_STEPS: u32 = 20;
@@ -54,6 +60,7 @@ pub fn bench(c: &mut Criterion) {
         let mut world = settled_world(&pile, n);
         let mut peer = settled_peer(&pile, n);
         print_solver_only(n, &mut world, &mut peer);
+        print_slope(n, &mut world, &mut peer);
         bench_ours(&mut group, n, &mut world);
         for config in rapier_configs() {
             peer.set_config(config);
@@ -158,4 +165,21 @@ fn print_solver_only(n: usize, world: &mut World, peer: &mut RapierPile) {
             ours / ns
         );
     }
+}
+
+/// The slope of both engines on the settled piles ([`slope::measure`], [`SLOPE_ROUNDS`]
+/// rounds), printed as its table.
+fn print_slope(n: usize, world: &mut World, peer: &mut RapierPile) {
+    let (mut solver, mut position) = (PgsSolver::default(), PgsPositionSolver::default());
+    let row = slope::measure(
+        n,
+        world,
+        &mut solver,
+        &mut position,
+        peer,
+        SLOPE_ROUNDS,
+        slope::block_steps(n),
+    )
+    .expect("slope");
+    slope::print(&[row]);
 }
