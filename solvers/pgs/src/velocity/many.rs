@@ -42,9 +42,13 @@ impl PgsSolver {
         self.small_islands = small;
     }
 
-    /// Whether this solver's prepared island is swept as batches only, in the plain plan.
+    /// Whether this solver's prepared island is swept as batches only, in the plain plan (in
+    /// `f64`: the packs are).
     pub(crate) fn batches_only(&self, points: usize) -> bool {
-        !self.plans_chunked(points) && !self.segments.is_empty() && self.scratch.is_empty()
+        self.settings.precision == crate::Precision::F64
+            && !self.plans_chunked(points)
+            && !self.segments.is_empty()
+            && self.scratch.is_empty()
     }
 }
 
