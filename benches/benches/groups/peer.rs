@@ -16,13 +16,13 @@
 //! benchmark then keeps stepping its own world. Before the benchmarks, the solver-only cost
 //! (ns per solver contact point per pass, velocity solve of each engine) is printed for
 //! every configuration, measured in turn over the same number of steps, and then the slope
-//! (`slope.rs`): what one more pass costs each engine, from whole steps at 100 and 1 000
-//! passes in turns, with the ratio ours / rapier2d.
+//! (`slope.rs`): what one more pass costs each engine (ours in `f64` and in `f32`), from whole
+//! steps at 100 and 1 000 passes in turns, with the ratios ours / rapier2d.
 
 use criterion::{BenchmarkId, Criterion, SamplingMode, Throughput};
 use deepcontact_benches::{SEED, fixed_world};
 use deepcontact_core::{CarriedWarmStart, World, WorldSettings, scene};
-use deepcontact_pgs::{PgsPositionSolver, PgsSolver};
+use deepcontact_pgs::{PgsPositionSolver, PgsSettings, PgsSolver, Precision};
 
 use super::rapier_pile::{RapierConfig, RapierPile};
 use super::slope;
@@ -170,11 +170,21 @@ fn print_solver_only(n: usize, world: &mut World, peer: &mut RapierPile) {
 /// The slope of both engines on the settled piles ([`slope::measure`], [`SLOPE_ROUNDS`]
 /// rounds), printed as its table.
 fn print_slope(n: usize, world: &mut World, peer: &mut RapierPile) {
-    let (mut solver, mut position) = (PgsSolver::default(), PgsPositionSolver::default());
+    let mut position = PgsPositionSolver::default();
+    let (mut f64_solver, mut f32_solver) = (
+        PgsSolver::default(),
+        PgsSolver::with_settings(PgsSettings {
+            precision: Precision::F32,
+            ..PgsSettings::default()
+        }),
+    );
     let row = slope::measure(
         n,
         world,
-        &mut solver,
+        &mut [
+            ("pgs (f64)", &mut f64_solver),
+            ("pgs:precision=f32", &mut f32_solver),
+        ],
         &mut position,
         peer,
         SLOPE_ROUNDS,

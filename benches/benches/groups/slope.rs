@@ -3,8 +3,9 @@
 //!
 //! Each engine steps its own settled pile, alternately at [`LOW`] and [`HIGH`] passes per
 //! step, in turns: ours at [`LOW`], rapier2d at [`LOW`], ours at [`HIGH`], rapier2d at
-//! [`HIGH`], a block of steps each, and again for every round. Per engine and round the slope
-//! is
+//! [`HIGH`], a block of steps each, and again for every round (with several of our solvers,
+//! each takes its turn where "ours" stands, one after the other, on the same world). Per
+//! engine and round the slope is
 //!
 //! ```text
 //! (t_HIGH / points_HIGH − t_LOW / points_LOW) / (HIGH − LOW)
@@ -59,22 +60,18 @@ impl Slope {
     }
 }
 
-/// Our side and rapier2d's, with the ratio ours / rapier2d of each round.
+/// One of our solvers: its slope and the ratio to rapier2d's of each round.
 #[derive(Debug, Clone, Default)]
-pub struct SlopeRow {
-    /// Bodies.
-    pub bodies: usize,
-    /// Steps per engine, pass count and round.
-    pub block: u64,
-    /// Our PGS.
-    pub ours: Slope,
-    /// rapier2d.
-    pub rapier: Slope,
+pub struct OurSlope {
+    /// The solver's label.
+    pub label: String,
+    /// Its slope.
+    pub slope: Slope,
     /// Ours / rapier2d, one per round.
     pub ratios: Vec<f64>,
 }
 
-impl SlopeRow {
+impl OurSlope {
     /// The median ratio and the smallest and largest.
     pub fn ratio(&self) -> (f64, f64, f64) {
         let min = self.ratios.iter().copied().fold(f64::INFINITY, f64::min);
@@ -85,6 +82,21 @@ impl SlopeRow {
             .fold(f64::NEG_INFINITY, f64::max);
         (median(&self.ratios), min, max)
     }
+}
+
+/// Our solvers' side and rapier2d's.
+#[derive(Debug, Clone, Default)]
+pub struct SlopeRow {
+    /// Bodies.
+    pub bodies: usize,
+    /// Steps per engine, pass count and round.
+    pub block: u64,
+    /// Rounds.
+    pub rounds: u32,
+    /// Our solvers, in the order they took their turns.
+    pub ours: Vec<OurSlope>,
+    /// rapier2d.
+    pub rapier: Slope,
 }
 
 fn median(v: &[f64]) -> f64 {
@@ -169,11 +181,12 @@ fn rapier_block(peer: &mut RapierPile, passes: u32, steps: u64) -> Block {
 }
 
 /// The slope of both engines on their settled piles of `n` bodies, `rounds` rounds of
-/// `block` steps per engine and pass count, the engines in turns (see the module docs).
+/// `block` steps per engine and pass count, the engines in turns (see the module docs); each
+/// of our `solvers` (label, solver) takes its turn on the same world, one after the other.
 pub fn measure(
     n: usize,
     world: &mut World,
-    solver: &mut dyn VelocitySolver,
+    solvers: &mut [(&str, &mut dyn VelocitySolver)],
     position: &mut dyn PositionSolver,
     peer: &mut RapierPile,
     rounds: u32,
@@ -182,26 +195,39 @@ pub fn measure(
     let mut row = SlopeRow {
         bodies: n,
         block,
+        rounds,
+        ours: solvers
+            .iter()
+            .map(|(label, _)| OurSlope {
+                label: (*label).to_string(),
+                ..OurSlope::default()
+            })
+            .collect(),
         ..SlopeRow::default()
     };
-    let (mut ours_points, mut rapier_points) = (0.0, 0.0);
     let per_pass = 1e9 / f64::from(HIGH - LOW);
-    for _ in 0..rounds {
-        let ours_low = ours_block(world, solver, position, LOW, block)?;
-        let rapier_low = rapier_block(peer, LOW, block);
-        let ours_high = ours_block(world, solver, position, HIGH, block)?;
-        let rapier_high = rapier_block(peer, HIGH, block);
-        let ours = (ours_high.per_point - ours_low.per_point) * per_pass;
-        let rapier = (rapier_high.per_point - rapier_low.per_point) * per_pass;
-        row.ours.rounds.push(ours);
-        row.rapier.rounds.push(rapier);
-        row.ratios.push(ours / rapier);
-        ours_points += ours_low.points + ours_high.points;
-        rapier_points += rapier_low.points + rapier_high.points;
-    }
     let blocks = 2.0 * f64::from(rounds.max(1));
-    row.ours.points = ours_points / blocks;
-    row.rapier.points = rapier_points / blocks;
+    let mut low = vec![Block::new(); solvers.len()];
+    let mut high = low.clone();
+    for _ in 0..rounds {
+        for ((_, solver), b) in solvers.iter_mut().zip(&mut low) {
+            *b = ours_block(world, &mut **solver, position, LOW, block)?;
+        }
+        let rapier_low = rapier_block(peer, LOW, block);
+        for ((_, solver), b) in solvers.iter_mut().zip(&mut high) {
+            *b = ours_block(world, &mut **solver, position, HIGH, block)?;
+        }
+        let rapier_high = rapier_block(peer, HIGH, block);
+        let rapier = (rapier_high.per_point - rapier_low.per_point) * per_pass;
+        row.rapier.rounds.push(rapier);
+        row.rapier.points += (rapier_low.points + rapier_high.points) / blocks;
+        for ((ours, l), h) in row.ours.iter_mut().zip(&low).zip(&high) {
+            let slope = (h.per_point - l.per_point) * per_pass;
+            ours.slope.rounds.push(slope);
+            ours.slope.points += (l.points + h.points) / blocks;
+            ours.ratios.push(slope / rapier);
+        }
+    }
     Ok(row)
 }
 
@@ -210,28 +236,25 @@ pub fn print(rows: &[SlopeRow]) {
     println!(
         "\nSlope: what one more pass costs, (t{HIGH}/points − t{LOW}/points) / {} in ns per \
          contact point per pass, t/points = the fastest whole step of a block per contact point, \
-         both engines on their settled piles in turns \
-         (ours: PGS, tolerance 0; rapier2d: one substep of N PGS passes, friction in every \
-         pass); median of the rounds (min–max):\n",
+         both engines on their settled piles in turns (ours: PGS, tolerance 0; rapier2d: one \
+         substep of N PGS passes, friction in every pass); median of the rounds (min–max):\n",
         HIGH - LOW
     );
     println!(
-        "| bodies | steps/block | rounds | ours points | ours ns | rapier2d points | rapier2d ns | \
-         ratio ours / rapier2d |"
+        "| bodies | steps/block | rounds | solver | points | ns | rapier2d points | rapier2d ns | \
+         ratio to rapier2d |"
     );
-    println!("|---:|---:|---:|---:|---:|---:|---:|---:|");
+    println!("|---:|---:|---:|---|---:|---:|---:|---:|---:|");
     for r in rows {
-        let (om, (o0, o1)) = (r.ours.median(), r.ours.spread());
         let (rm, (r0, r1)) = (r.rapier.median(), r.rapier.spread());
-        let (q, q0, q1) = r.ratio();
-        println!(
-            "| {} | {} | {} | {:.0} | {om:.2} ({o0:.2}–{o1:.2}) | {:.0} | {rm:.2} ({r0:.2}–{r1:.2}) | \
-             {q:.2} ({q0:.2}–{q1:.2}) |",
-            r.bodies,
-            r.block,
-            r.ratios.len(),
-            r.ours.points,
-            r.rapier.points,
-        );
+        for o in &r.ours {
+            let (om, (o0, o1)) = (o.slope.median(), o.slope.spread());
+            let (q, q0, q1) = o.ratio();
+            println!(
+                "| {} | {} | {} | {} | {:.0} | {om:.2} ({o0:.2}–{o1:.2}) | {:.0} | \
+                 {rm:.2} ({r0:.2}–{r1:.2}) | {q:.2} ({q0:.2}–{q1:.2}) |",
+                r.bodies, r.block, r.rounds, o.label, o.slope.points, r.rapier.points,
+            );
+        }
     }
 }

@@ -17,7 +17,8 @@
 //! * `thesis`: the thesis stop rule (∞-norm < 1e-4, cap 1000; position cap 250);
 //! * the slope (`slope.rs`): what one more pass costs, ns per contact point per pass, from whole
 //!   steps at 100 and at 1 000 passes of each engine on its settled pile, the engines in turns,
-//!   `--slope-rounds` rounds (median and spread), with the ratio ours / rapier2d;
+//!   `--slope-rounds` rounds (median and spread), our PGS in `f64` and in `f32`
+//!   (`pgs:precision=f32`) in turns with rapier2d, with the ratios ours / rapier2d;
 //! * the peer comparison at `--passes` passes per step, on the settled pile and over a whole
 //!   `--run-steps` run from the initial state: our PGS velocity solve (`--passes`
 //!   iterations, tolerance 0, default position pass) beside rapier2d's velocity resolution in
@@ -41,7 +42,7 @@ mod tables;
 
 use deepcontact_benches::{SEED, fixed_world};
 use deepcontact_core::{WorldSettings, scene};
-use deepcontact_pgs::{PgsPositionSolver, PgsSolver};
+use deepcontact_pgs::{PgsPositionSolver, PgsSettings, PgsSolver, Precision};
 
 use options::Options;
 use peer::PeerRow;
@@ -97,12 +98,22 @@ fn measure_size(
         let mut pile = peer::settle(&scene, settle, o.iterations);
         peers.push(peer::settled(n, &mut world, &mut pile, o.passes, m)?);
         if o.slope_rounds > 0 {
-            let (mut solver, mut position) = (PgsSolver::default(), PgsPositionSolver::default());
+            let mut position = PgsPositionSolver::default();
+            let (mut f64_solver, mut f32_solver) = (
+                PgsSolver::default(),
+                PgsSolver::with_settings(PgsSettings {
+                    precision: Precision::F32,
+                    ..PgsSettings::default()
+                }),
+            );
             let block = o.slope_block.unwrap_or_else(|| slope::block_steps(n));
             slopes.push(slope::measure(
                 n,
                 &mut world,
-                &mut solver,
+                &mut [
+                    ("pgs (f64)", &mut f64_solver),
+                    ("pgs:precision=f32", &mut f32_solver),
+                ],
                 &mut position,
                 &mut pile,
                 o.slope_rounds,
