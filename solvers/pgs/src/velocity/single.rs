@@ -10,11 +10,16 @@
 //! measures of a sweep are summed in `f32`, lane by lane in a fixed order, and widened for the
 //! stop rule. The loop runs on the calling thread whatever [`PgsSettings::threads`] says, so
 //! its result is the same bits for every thread count; it is compiled for the instruction set
-//! detected at run time (the same IEEE operations in the same order either way: the same bits).
+//! detected at run time, the wide batches through a kernel in AVX2 intrinsics where the CPU has
+//! them ([`avx2`]), else the portable loop (the same IEEE operations in the same order either
+//! way: the same bits).
 //!
 //! [`PgsSettings::threads`]: super::PgsSettings::threads
 
 use std::ops::Range;
+
+#[cfg(target_arch = "x86_64")]
+mod avx2;
 
 use deepcontact_core::{ResidualNorm, SolveReport, SolverSettings};
 
@@ -299,15 +304,18 @@ impl Single {
         }
     }
 
-    /// One Gauss-Seidel sweep in `f32`; its measures widened.
+    /// One Gauss-Seidel sweep in `f32`, the wide batches through `kernel`; its measures
+    /// widened.
     #[inline(always)]
-    fn iterate<const CONTACT: bool>(&mut self) -> Sweep {
+    fn iterate<const CONTACT: bool, K: WideKernel>(&mut self, kernel: K) -> Sweep {
         let mut acc = Measures::default();
         let mut lanes = Lanes::default();
         for seg in &self.segments {
-            for b in &mut self.batches[seg.batches.clone()] {
-                sweep_batch::<CONTACT>(b, &mut self.vel, &mut lanes);
-            }
+            kernel.sweep::<CONTACT>(
+                &mut self.batches[seg.batches.clone()],
+                &mut self.vel,
+                &mut lanes,
+            );
             for m in &self.manifolds[seg.manifolds.clone()] {
                 sweep_manifold::<CONTACT>(m, &mut self.rows, &mut self.vel, &mut acc);
             }
@@ -326,17 +334,18 @@ impl Single {
 
     /// Sweeps until the stop rule holds, the cap is reached or a change is not finite.
     #[inline(always)]
-    fn solve_loop(
+    fn solve_loop<K: WideKernel>(
         &mut self,
         settings: &SolverSettings,
         report: &mut SolveReport,
+        kernel: K,
     ) -> (u32, Verdict) {
         let mut it = 0;
         while it < settings.max_iterations {
             let sweep = if settings.norm == ResidualNorm::Contact {
-                self.iterate::<true>()
+                self.iterate::<true, K>(kernel)
             } else {
-                self.iterate::<false>()
+                self.iterate::<false, K>(kernel)
             };
             it += 1;
             match judge(settings, it, &sweep, Some(report)) {
@@ -348,20 +357,52 @@ impl Single {
     }
 }
 
+/// How a sweep runs the wide batches of a colour: the portable loop ([`sweep_batch`]) or,
+/// with AVX2 detected, the same operations in its intrinsics ([`avx2`], two batches side by
+/// side). Both give the same bits.
+trait WideKernel: Copy {
+    /// Sweeps the wide batches of one colour in order on `vel`, folding their measures into
+    /// `lanes`.
+    fn sweep<const CONTACT: bool>(self, b: &mut [Batch32], vel: &mut [Vel32], lanes: &mut Lanes);
+}
+
+/// [`WideKernel`] of the portable loop.
+#[derive(Debug, Clone, Copy)]
+struct Portable;
+
+impl WideKernel for Portable {
+    #[inline(always)]
+    fn sweep<const CONTACT: bool>(self, b: &mut [Batch32], vel: &mut [Vel32], lanes: &mut Lanes) {
+        for batch in b {
+            sweep_batch::<CONTACT>(batch, vel, lanes);
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl WideKernel for pulp::x86::V3 {
+    #[inline(always)]
+    fn sweep<const CONTACT: bool>(self, b: &mut [Batch32], vel: &mut [Vel32], lanes: &mut Lanes) {
+        avx2::sweep_colour::<CONTACT>(self, b, vel, lanes);
+    }
+}
+
 /// [`Single::solve_loop`] as an operation of [`pulp::Arch::dispatch`]: compiled once per
-/// instruction set (with AVX2, a wide batch's lane field is one 256-bit register).
-struct SolveLoop<'a> {
+/// instruction set, with that set's [`WideKernel`].
+struct SolveLoop<'a, K> {
     single: &'a mut Single,
     settings: &'a SolverSettings,
     report: &'a mut SolveReport,
+    kernel: K,
 }
 
-impl pulp::WithSimd for SolveLoop<'_> {
+impl<K: WideKernel> pulp::WithSimd for SolveLoop<'_, K> {
     type Output = (u32, Verdict);
 
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _simd: S) -> Self::Output {
-        self.single.solve_loop(self.settings, self.report)
+        self.single
+            .solve_loop(self.settings, self.report, self.kernel)
     }
 }
 
@@ -375,15 +416,40 @@ impl PgsSolver {
     ) -> (u32, Verdict) {
         let mut single = std::mem::take(&mut self.single);
         single.load(self);
-        let run = self.arch.dispatch(SolveLoop {
-            single: &mut single,
-            settings,
-            report,
-        });
+        let run = dispatch(self.arch, &mut single, settings, report);
         single.store(self);
         self.single = single;
         run
     }
+}
+
+/// Runs the loop of `single` compiled for `arch`: with AVX2 detected, with the intrinsics
+/// kernel of [`avx2`]; otherwise with the portable loop.
+#[inline]
+fn dispatch(
+    arch: pulp::Arch,
+    single: &mut Single,
+    settings: &SolverSettings,
+    report: &mut SolveReport,
+) -> (u32, Verdict) {
+    #[cfg(target_arch = "x86_64")]
+    if let pulp::Arch::V3(simd) = arch {
+        return <pulp::x86::V3 as pulp::Simd>::vectorize(
+            simd,
+            SolveLoop {
+                single,
+                settings,
+                report,
+                kernel: simd,
+            },
+        );
+    }
+    arch.dispatch(SolveLoop {
+        single,
+        settings,
+        report,
+        kernel: Portable,
+    })
 }
 
 /// `x` clamped to `[-bound, bound]` (as the `f64` sweep's `clamp_sym`).
