@@ -5,6 +5,7 @@ pub mod onnx;
 pub mod peer;
 pub mod providers;
 pub mod rapier_pile;
+pub mod slope;
 pub mod solvers;
 
 use std::sync::OnceLock;

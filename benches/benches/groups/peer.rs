@@ -15,18 +15,24 @@
 //! Both engines are first settled for the same number of steps from the same bodies; each
 //! benchmark then keeps stepping its own world. Before the benchmarks, the solver-only cost
 //! (ns per solver contact point per pass, velocity solve of each engine) is printed for
-//! every configuration, measured in turn over the same number of steps.
+//! every configuration, measured in turn over the same number of steps, and then the slope
+//! (`slope.rs`): what one more pass costs each engine (ours in `f64` and in `f32`), from whole
+//! steps at 100 and 1 000 passes in turns, with the ratios ours / rapier2d.
 
 use criterion::{BenchmarkId, Criterion, SamplingMode, Throughput};
 use deepcontact_benches::{SEED, fixed_world};
 use deepcontact_core::{CarriedWarmStart, World, WorldSettings, scene};
-use deepcontact_pgs::{PgsPositionSolver, PgsSolver};
+use deepcontact_pgs::{PgsPositionSolver, PgsSettings, PgsSolver, Precision};
 
 use super::rapier_pile::{RapierConfig, RapierPile};
+use super::slope;
 use super::{peer_sizes, settle_steps};
 
 /// Velocity iterations (passes) of the fixed-count comparison.
 pub const ITERATIONS: u32 = 10;
+
+/// Rounds of the slope printed before the benchmarks.
+const SLOPE_ROUNDS: u32 = 9;
 
 /// Steps timed for the solver-only figures printed before the benchmarks.
 const SOLVER_STEPS: u32 = 20;
@@ -54,6 +60,7 @@ pub fn bench(c: &mut Criterion) {
         let mut world = settled_world(&pile, n);
         let mut peer = settled_peer(&pile, n);
         print_solver_only(n, &mut world, &mut peer);
+        print_slope(n, &mut world, &mut peer);
         bench_ours(&mut group, n, &mut world);
         for config in rapier_configs() {
             peer.set_config(config);
@@ -158,4 +165,31 @@ fn print_solver_only(n: usize, world: &mut World, peer: &mut RapierPile) {
             ours / ns
         );
     }
+}
+
+/// The slope of both engines on the settled piles ([`slope::measure`], [`SLOPE_ROUNDS`]
+/// rounds), printed as its table.
+fn print_slope(n: usize, world: &mut World, peer: &mut RapierPile) {
+    let mut position = PgsPositionSolver::default();
+    let (mut f64_solver, mut f32_solver) = (
+        PgsSolver::default(),
+        PgsSolver::with_settings(PgsSettings {
+            precision: Precision::F32,
+            ..PgsSettings::default()
+        }),
+    );
+    let row = slope::measure(
+        n,
+        world,
+        &mut [
+            ("pgs (f64)", &mut f64_solver),
+            ("pgs:precision=f32", &mut f32_solver),
+        ],
+        &mut position,
+        peer,
+        SLOPE_ROUNDS,
+        slope::block_steps(n),
+    )
+    .expect("slope");
+    slope::print(&[row]);
 }

@@ -15,6 +15,10 @@
 //!   time per step, its split, ns per contact point per iteration of the velocity solve, and
 //!   the phases of a step timed one by one;
 //! * `thesis`: the thesis stop rule (∞-norm < 1e-4, cap 1000; position cap 250);
+//! * the slope (`slope.rs`): what one more pass costs, ns per contact point per pass, from whole
+//!   steps at 100 and at 1 000 passes of each engine on its settled pile, the engines in turns,
+//!   `--slope-rounds` rounds (median and spread), our PGS in `f64` and in `f32`
+//!   (`pgs:precision=f32`) in turns with rapier2d, with the ratios ours / rapier2d;
 //! * the peer comparison at `--passes` passes per step, on the settled pile and over a whole
 //!   `--run-steps` run from the initial state: our PGS velocity solve (`--passes`
 //!   iterations, tolerance 0, default position pass) beside rapier2d's velocity resolution in
@@ -27,6 +31,8 @@
 
 #[path = "../../benches/groups/rapier_pile.rs"]
 mod rapier_pile;
+#[path = "../../benches/groups/slope.rs"]
+mod slope;
 
 mod options;
 mod ours;
@@ -36,6 +42,7 @@ mod tables;
 
 use deepcontact_benches::{SEED, fixed_world};
 use deepcontact_core::{WorldSettings, scene};
+use deepcontact_pgs::{PgsPositionSolver, PgsSettings, PgsSolver, Precision};
 
 use options::Options;
 use peer::PeerRow;
@@ -45,18 +52,27 @@ fn main() -> Result<(), String> {
     let Some(o) = options::parse()? else {
         return Ok(());
     };
-    let (mut rows, mut peers) = (Vec::new(), Vec::new());
+    let (mut rows, mut peers, mut slopes) = (Vec::new(), Vec::new(), Vec::new());
     for &n in &o.sizes {
-        rows.push(measure_size(&o, n, &mut peers)?);
+        rows.push(measure_size(&o, n, &mut peers, &mut slopes)?);
     }
     tables::steps(&rows, o.iterations);
     tables::phases(&rows, o.iterations);
     tables::peer(&peers, o.passes);
+    if !slopes.is_empty() {
+        slope::print(&slopes);
+    }
     Ok(())
 }
 
-/// Settles the pile of `n` bodies and measures it; the peer rows go to `peers`.
-fn measure_size(o: &Options, n: usize, peers: &mut Vec<PeerRow>) -> Result<SizeRow, String> {
+/// Settles the pile of `n` bodies and measures it; the peer rows go to `peers`, the slope rows
+/// to `slopes`.
+fn measure_size(
+    o: &Options,
+    n: usize,
+    peers: &mut Vec<PeerRow>,
+    slopes: &mut Vec<slope::SlopeRow>,
+) -> Result<SizeRow, String> {
     let scene = scene::pile(SEED, n).map_err(|e| e.to_string())?;
     let settle = o.settle.unwrap_or_else(|| options::settle_steps(n));
     let t0 = std::time::Instant::now();
@@ -79,15 +95,31 @@ fn measure_size(o: &Options, n: usize, peers: &mut Vec<PeerRow>) -> Result<SizeR
         None
     };
     if o.rapier {
-        peers.push(peer::settled(
-            n,
-            &scene,
-            &mut world,
-            settle,
-            o.iterations,
-            o.passes,
-            m,
-        )?);
+        let mut pile = peer::settle(&scene, settle, o.iterations);
+        peers.push(peer::settled(n, &mut world, &mut pile, o.passes, m)?);
+        if o.slope_rounds > 0 {
+            let mut position = PgsPositionSolver::default();
+            let (mut f64_solver, mut f32_solver) = (
+                PgsSolver::default(),
+                PgsSolver::with_settings(PgsSettings {
+                    precision: Precision::F32,
+                    ..PgsSettings::default()
+                }),
+            );
+            let block = o.slope_block.unwrap_or_else(|| slope::block_steps(n));
+            slopes.push(slope::measure(
+                n,
+                &mut world,
+                &mut [
+                    ("pgs (f64)", &mut f64_solver),
+                    ("pgs:precision=f32", &mut f32_solver),
+                ],
+                &mut position,
+                &mut pile,
+                o.slope_rounds,
+                block,
+            )?);
+        }
         if o.whole_run {
             peers.push(peer::whole_run(n, &scene, o.passes, o.run_steps)?);
         }

@@ -23,13 +23,18 @@ pub struct Options {
     pub whole_run: bool,
     /// Run the thesis stop rule on the settled pile.
     pub thesis: bool,
+    /// Rounds of the slope measurement (0: none).
+    pub slope_rounds: u32,
+    /// Steps per engine, pass count and round of the slope (default: `slope::block_steps`).
+    pub slope_block: Option<u64>,
     /// Print progress while settling.
     pub trace: bool,
 }
 
 const USAGE: &str = "scaling [--sizes 100,1000,10000] [--iterations 10] [--passes 100] \
                      [--run-steps 250] [--settle STEPS] [--settle-cap 50] [--measure STEPS] \
-                     [--no-rapier] [--no-run] [--no-thesis] [--trace]";
+                     [--slope-rounds 15] [--slope-block STEPS] [--no-rapier] [--no-run] \
+                     [--no-thesis] [--trace]";
 
 /// Parses the command line (`None`: help was printed).
 pub fn parse() -> Result<Option<Options>, String> {
@@ -44,6 +49,8 @@ pub fn parse() -> Result<Option<Options>, String> {
         rapier: true,
         whole_run: true,
         thesis: true,
+        slope_rounds: 15,
+        slope_block: None,
         trace: false,
     };
     let mut args = std::env::args().skip(1);
@@ -57,6 +64,8 @@ pub fn parse() -> Result<Option<Options>, String> {
             "--settle" => o.settle = Some(number(&value()?, &a)?),
             "--settle-cap" => o.settle_cap = number(&value()?, &a)?,
             "--measure" => o.measure = Some(number(&value()?, &a)?),
+            "--slope-rounds" => o.slope_rounds = number(&value()?, &a)?,
+            "--slope-block" => o.slope_block = Some(number(&value()?, &a)?),
             "--no-rapier" => o.rapier = false,
             "--no-run" => o.whole_run = false,
             "--no-thesis" => o.thesis = false,

@@ -147,23 +147,26 @@ pub fn whole_run(n: usize, scene: &Scene, passes: u32, steps: u64) -> Result<Pee
     })
 }
 
-/// Ours continuing from the settled `world` beside rapier2d settled for `settle` steps (in its
-/// substep configuration at `settle_iterations`): `steps` steps of ours and of rapier2d in the
-/// like-with-like configuration in turns of [`BLOCK`] steps, then `steps` steps of each other
-/// configuration.
-pub fn settled(
-    n: usize,
-    scene: &Scene,
-    world: &mut World,
-    settle: u64,
-    settle_iterations: u32,
-    passes: u32,
-    steps: u64,
-) -> Result<PeerRow, String> {
+/// rapier2d's pile of `scene` settled for `settle` steps in its substep configuration at
+/// `settle_iterations`.
+pub fn settle(scene: &Scene, settle: u64, settle_iterations: u32) -> RapierPile {
     let mut peer = RapierPile::new(scene, RapierConfig::Substeps(settle_iterations as usize));
     for _ in 0..settle {
         peer.step();
     }
+    peer
+}
+
+/// Ours continuing from the settled `world` beside rapier2d's settled `peer` ([`settle`]):
+/// `steps` steps of ours and of rapier2d in the like-with-like configuration in turns of
+/// [`BLOCK`] steps, then `steps` steps of each other configuration.
+pub fn settled(
+    n: usize,
+    world: &mut World,
+    peer: &mut RapierPile,
+    passes: u32,
+    steps: u64,
+) -> Result<PeerRow, String> {
     eprintln!(
         "n={n}: kinetic energy of the settled piles: deepcontact {:.3} J, rapier2d {:.3} J",
         world.kinetic_energy(),
@@ -183,7 +186,7 @@ pub fn settled(
                 }
             }
             for _ in 0..block {
-                totals.step(&mut peer);
+                totals.step(peer);
             }
         }
         rapier.push((config, totals.cost()));

@@ -31,26 +31,21 @@
 //! dependent chains overlap); elsewhere the portable loop runs, one batch at a time. The
 //! arithmetic is the same operations in the same order, so the results are bit-identical
 //! either way.
+//!
+//! **Precision.** The sweep runs in `f64` by default; [`Precision::F32`]
+//! ([`PgsSettings::precision`], `pgs:precision=f32`) runs its iterations in `f32`, eight
+//! single-point manifolds to an AVX2 register, on the calling thread.
 #![warn(missing_docs)]
 
-mod domain_sweep;
-mod partition;
 mod position;
-mod position_chunked;
-mod position_domains;
 mod registry;
-mod sync;
+mod threads;
 mod velocity;
-mod velocity_chunked;
-mod velocity_domains;
-mod velocity_lanes;
-mod velocity_many;
-mod z_order;
 
-pub use partition::MAX_DOMAINS;
 pub use position::{PgsPositionSettings, PgsPositionSolver};
 pub use registry::{MAX_THREADS, register};
-pub use velocity::{LANES, Ordering, PgsSettings, PgsSolver};
+pub use threads::partition::MAX_DOMAINS;
+pub use velocity::{LANES, Ordering, PgsSettings, PgsSolver, Precision};
 
 /// Errors of this crate (wrapped into [`deepcontact_core::CoreError`] at the trait boundary).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

@@ -1,5 +1,8 @@
 //! The position pass: Box2D v2.4's non-linear Gauss-Seidel on the contact separations.
 
+mod chunked;
+mod domains;
+
 use deepcontact_core::math::{Pose, Real, Vector, cross, rotate, rotate_sin_cos};
 use deepcontact_core::{
     CircleContact, ContactProblem, CoreError, PositionReport, PositionSettings, PositionSolver,
@@ -53,13 +56,13 @@ pub struct PgsPositionSolver {
     /// The points laid out for the pass, in the order it visits them.
     rows: Vec<PosRow>,
     /// The coloured plan: point indices colour by colour, and each colour's range in it.
-    plan: crate::position_chunked::Plan,
+    plan: crate::position::chunked::Plan,
     /// For the coloured plan: the bodies renumbered in Z-order of their positions, and the
     /// poses in that order.
-    bodies: crate::z_order::Renumbering,
+    bodies: crate::threads::z_order::Renumbering,
     renumbered: Vec<Pose>,
     /// The domain plan's parts ([`PgsPositionSettings::domains`]).
-    domains: crate::position_domains::PositionDomains,
+    domains: crate::position::domains::PositionDomains,
     /// The plain plan's rotation of each body, kept across the pass's iterations.
     rotations: Vec<Rotation>,
 }
@@ -88,7 +91,7 @@ impl PgsPositionSolver {
 }
 
 /// Body poses as the pass reads and writes them: a plain slice on one thread, shared atomic
-/// cells when threads split a colour ([`crate::position_chunked`]).
+/// cells when threads split a colour ([`crate::position::chunked`]).
 pub(crate) trait Poses {
     /// Pose of body `i`.
     fn get(&self, i: usize) -> Pose;
@@ -219,7 +222,7 @@ impl PosRow {
 
 impl PosRow {
     /// The row's two bodies and whether each can move.
-    pub(crate) fn ends(&self) -> crate::partition::Ends {
+    pub(crate) fn ends(&self) -> crate::threads::partition::Ends {
         [
             (self.a, !(self.ma == 0.0 && self.ia == 0.0)),
             (self.b, !(self.mb == 0.0 && self.ib == 0.0)),
@@ -400,7 +403,7 @@ impl PositionSolver for PgsPositionSolver {
         if problem.points.len() >= self.settings.parallel_min_points {
             // Bodies in Z-order (so that a domain, or a chunk of a colour, is a patch of
             // space whose bodies share cache lines).
-            let z = crate::z_order::ZOrder::of(&problem.points);
+            let z = crate::threads::z_order::ZOrder::of(&problem.points);
             self.bodies.build(&z, &problem.bodies);
             let new = &self.bodies.new_index;
             let row = |k: usize| {
@@ -420,14 +423,14 @@ impl PositionSolver for PgsPositionSolver {
             self.renumbered.clear();
             self.renumbered
                 .extend(self.bodies.body_of.iter().map(|&b| poses[b as usize]));
-            let threads = crate::sync::effective_threads(self.settings.threads);
+            let threads = crate::threads::sync::effective_threads(self.settings.threads);
             if self.settings.domains > 0 {
                 self.domains
                     .build(self.settings.domains, threads, &self.rows, &self.renumbered);
                 self.domains
                     .solve(threads, settings, &mut self.renumbered, &mut report);
             } else {
-                crate::position_chunked::solve(
+                crate::position::chunked::solve(
                     &self.rows,
                     &self.plan,
                     threads,
@@ -673,8 +676,11 @@ mod tests {
     #[test]
     fn coloured_plan_never_puts_two_points_on_one_movable_body_in_a_colour() {
         let (problem, _) = pile_problem();
-        let mut plan = crate::position_chunked::Plan::default();
-        plan.build(&problem, &crate::z_order::ZOrder::of(&problem.points));
+        let mut plan = crate::position::chunked::Plan::default();
+        plan.build(
+            &problem,
+            &crate::threads::z_order::ZOrder::of(&problem.points),
+        );
         assert!(plan.check(&problem), "a colour moves one body twice");
     }
 }

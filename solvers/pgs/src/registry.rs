@@ -2,14 +2,14 @@
 
 use deepcontact_core::registry::Registry;
 
-use crate::{MAX_DOMAINS, Ordering, PgsSettings, PgsSolver};
+use crate::{MAX_DOMAINS, Ordering, PgsSettings, PgsSolver, Precision};
 
 /// The most threads `pgs:threads=` accepts.
 pub const MAX_THREADS: u64 = 64;
 
 /// Registers `pgs` (parameters `block=true|false`, `order=coloured|sequential`,
 /// `lanes=true|false`, `start=projected|raw`, `threads=1..64`, `parallel_from=POINTS`, `domains=0..63`,
-/// `chunk=BATCHES`;
+/// `chunk=BATCHES`, `precision=f64|f32`;
 /// defaults: [`PgsSettings::default`]).
 pub fn register(registry: &mut Registry) {
     registry.register_solver(
@@ -20,7 +20,9 @@ pub fn register(registry: &mut Registry) {
          fixed chunks that threads share; default 2048), domains=N (such islands cut into N \
          bands of their contact graph, the even ones swept side by side on threads, then the \
          odd ones; 0: colours shared in chunks instead; default 16), chunk=N (batches of 4 \
-         contacts per chunk of that colour plan, the unit a thread takes; default 16)",
+         contacts per chunk of that colour plan, the unit a thread takes; default 16), \
+         precision=f64|f32 (f32: the iterations in single precision, 8 contacts per AVX2 \
+         register, on the calling thread; default f64)",
         |p| {
             let d = PgsSettings::default();
             let block_solver = p.bool("block", d.block_solver)?;
@@ -52,6 +54,10 @@ pub fn register(registry: &mut Registry) {
                 None => d.raw_start,
                 Some(v) => v == "raw",
             };
+            let precision = match p.choice("precision", &["f64", "f32"])? {
+                Some("f32") => Precision::F32,
+                _ => d.precision,
+            };
             let ordering = match p.choice("order", &["coloured", "colored", "sequential"])? {
                 None => d.ordering,
                 Some("sequential") => Ordering::Sequential,
@@ -66,6 +72,7 @@ pub fn register(registry: &mut Registry) {
                 parallel_min_points,
                 domains: domains as usize,
                 chunk: usize::try_from(chunk).unwrap_or(usize::MAX),
+                precision,
                 ..d
             })) as Box<dyn deepcontact_core::VelocitySolver>)
         },

@@ -8,7 +8,10 @@
 //! iterate, end). One concept per submodule: `layout` (rows, manifolds, batches), `plan`
 //! (colouring and batching), `sweep` (one sweep's arithmetic), `measures` (what a sweep
 //! measures, the stop rule's verdict), `kernel` (the instruction set chosen at run time) and
-//! `avx2` (the batch sweep in AVX2 intrinsics).
+//! `avx2` (the batch sweep in AVX2 intrinsics). The sweep's variants each have one too:
+//! `chunked` (colour by colour in fixed chunks on threads), `domains` (the domain plan),
+//! `lanes` (small islands packed into the lanes of shared batches) and `many` (a step's islands
+//! solved together).
 
 use std::time::Instant;
 
@@ -22,10 +25,15 @@ use crate::PgsError;
 
 #[cfg(target_arch = "x86_64")]
 mod avx2;
+mod chunked;
+mod domains;
 mod kernel;
+mod lanes;
 mod layout;
+mod many;
 mod measures;
 mod plan;
+mod single;
 mod sweep;
 
 pub(crate) use kernel::{BatchKernel, Island, KernelOp, dispatch};
@@ -85,6 +93,25 @@ pub struct PgsSettings {
     /// (default 16; 0 counts as 1): the unit a thread takes, so no more threads share a colour
     /// than it has chunks. Changes only the order in which `Σ Δλ²` is summed.
     pub chunk: usize,
+    /// Floating-point precision of the sweep's rows, impulses and velocities (default
+    /// [`Precision::F64`]; `pgs:precision=f32`).
+    pub precision: Precision,
+}
+
+/// Floating-point precision of the velocity sweep.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Precision {
+    /// `f64` throughout.
+    #[default]
+    F64,
+    /// The iterations in `f32` (the precision of Box2D and rapier2d): the island prepared and
+    /// warm-started in `f64`, then rounded once; the single-point manifolds of a colour swept
+    /// [`2 × LANES`](LANES) at a time (eight `f32` lanes to one AVX2 register); the impulses and
+    /// velocities widened back for the final projection, the checks and the natural residual
+    /// in `f64`. Every island is swept on the calling thread in the plain coloured plan (no
+    /// domain or chunked plan, no packing of small islands), so the result is the same bits
+    /// for every [`PgsSettings::threads`].
+    F32,
 }
 
 impl Default for PgsSettings {
@@ -98,7 +125,8 @@ impl Default for PgsSettings {
             threads: 1,
             parallel_min_points: 2048,
             domains: 16,
-            chunk: crate::velocity_chunked::CHUNK,
+            chunk: crate::velocity::chunked::CHUNK,
+            precision: Precision::F64,
         }
     }
 }
@@ -137,20 +165,22 @@ pub struct PgsSolver {
     pub(crate) segments: Vec<Segment>,
     /// For the chunked plan, the bodies of `vel` renumbered in Z-order of their positions (so
     /// that neighbours share cache lines); inactive: the problem's order.
-    bodies: crate::z_order::Renumbering,
+    bodies: crate::threads::z_order::Renumbering,
     /// The instruction set the sweep loops run in, detected once when the solver is made:
     /// AVX2 + FMA (x86-64-v3) where the CPU has them, else the baseline. Same bits either way.
     pub(crate) arch: pulp::Arch,
     /// The domain plan's domains ([`PgsSettings::domains`]; empty otherwise).
-    domains: crate::velocity_domains::Domains,
-    /// The solvers of the small islands solved together ([`crate::velocity_lanes`]), one per
+    domains: crate::velocity::domains::Domains,
+    /// The solvers of the small islands solved together ([`crate::velocity::lanes`]), one per
     /// island of a step, kept for the next.
     pub(crate) lane_solvers: Vec<PgsSolver>,
     /// The small islands of a step (their indices), and how each is swept.
     pub(crate) small_islands: Vec<usize>,
-    pub(crate) small_kinds: Vec<crate::velocity_lanes::Kind>,
+    pub(crate) small_kinds: Vec<crate::velocity::lanes::Kind>,
     /// The most threads one island's sweep has run on ([`Self::threads_used`]).
     pub(crate) threads_used: usize,
+    /// The single-precision copy of the island ([`Precision::F32`]).
+    single: single::Single,
 }
 
 impl PgsSolver {
@@ -183,7 +213,7 @@ impl PgsSolver {
         // The chunked plan's grid (none for the plain sweep: not a pass over the points more).
         let z = self
             .plans_chunked(problem.points.len())
-            .then(|| crate::z_order::ZOrder::of(&problem.points));
+            .then(|| crate::threads::z_order::ZOrder::of(&problem.points));
         match &z {
             Some(z) => self.bodies.build(z, &problem.bodies),
             None => self.bodies.clear(),
@@ -270,15 +300,16 @@ impl PgsSolver {
     }
 
     /// Whether an island of `points` contact points is swept in the chunked plan of
-    /// [`crate::velocity_chunked`] (coloured, laned, and large enough).
+    /// [`crate::velocity::chunked`] (coloured, laned, and large enough).
     pub(crate) fn plans_chunked(&self, points: usize) -> bool {
-        self.settings.ordering == Ordering::Coloured
+        self.settings.precision == Precision::F64
+            && self.settings.ordering == Ordering::Coloured
             && self.settings.lanes
             && points >= self.settings.parallel_min_points
     }
 
     /// Whether an island of `points` contact points is swept in the domain plan of
-    /// [`crate::velocity_domains`].
+    /// [`crate::velocity::domains`].
     fn plans_domains(&self, points: usize) -> bool {
         self.plans_chunked(points) && self.settings.domains > 0
     }
@@ -469,17 +500,20 @@ impl PgsSolver {
         settings: &SolverSettings,
         report: &mut SolveReport,
     ) -> (u32, Verdict) {
-        let (it, verdict, threads) = if self.plans_domains(points) {
+        let (it, verdict, threads) = if self.settings.precision == Precision::F32 {
+            let (it, verdict) = self.run_single(settings, report);
+            (it, verdict, 1)
+        } else if self.plans_domains(points) {
             self.domains.build(
                 self.settings.domains,
-                crate::sync::effective_threads(self.settings.threads),
+                crate::threads::sync::effective_threads(self.settings.threads),
                 &self.manifolds,
                 &self.rows,
                 &self.vel,
                 self.settings,
             );
             let run = self.domains.solve(
-                crate::sync::effective_threads(self.settings.threads),
+                crate::threads::sync::effective_threads(self.settings.threads),
                 self.arch,
                 settings,
                 report,
@@ -487,8 +521,8 @@ impl PgsSolver {
             self.domains.write_back(&mut self.rows, &mut self.vel);
             run
         } else if self.plans_chunked(points) && !self.segments.is_empty() {
-            crate::velocity_chunked::solve_chunked(
-                &mut crate::velocity_chunked::Sweepable {
+            crate::velocity::chunked::solve_chunked(
+                &mut crate::velocity::chunked::Sweepable {
                     batches: &mut self.batches,
                     segments: &self.segments,
                     serial: &self.scratch,
@@ -496,7 +530,7 @@ impl PgsSolver {
                     vel: &mut self.vel,
                 },
                 self.settings.chunk.max(1),
-                crate::sync::effective_threads(self.settings.threads),
+                crate::threads::sync::effective_threads(self.settings.threads),
                 self.arch,
                 settings,
                 report,
@@ -839,8 +873,8 @@ mod tests {
         same_bits_on_one_to_five_threads(
             PgsSettings::default(),
             |solver, threads, stop, report| {
-                let run = crate::velocity_chunked::solve_chunked(
-                    &mut crate::velocity_chunked::Sweepable {
+                let run = crate::velocity::chunked::solve_chunked(
+                    &mut crate::velocity::chunked::Sweepable {
                         batches: &mut solver.batches,
                         segments: &solver.segments,
                         serial: &solver.scratch,
@@ -923,6 +957,109 @@ mod tests {
                 solve_bits_and_threads(&problem, &start, settings, &stop, pulp::Arch::new());
             assert_eq!(used, cores.min(most), "{domains} domains");
         }
+    }
+
+    #[test]
+    fn f32_gives_the_same_bits_on_any_thread_count_and_instruction_set() {
+        // Settings under which an f64 solve of the pile would share it between threads (every
+        // island large, two and four threads, domain and chunked plans): the f32 path sweeps
+        // on the calling thread in wide batches, the same bits every time.
+        let detected = pulp::Arch::new();
+        for (k, problem) in pile_and_pyramid().into_iter().enumerate() {
+            let start = loaded_start(&problem);
+            let stop = SolverSettings {
+                tolerance: 1e-4,
+                ..SolverSettings::default()
+            };
+            let run = |threads, domains, arch| {
+                let settings = PgsSettings {
+                    threads,
+                    parallel_min_points: 0,
+                    domains,
+                    chunk: 1,
+                    precision: Precision::F32,
+                    ..PgsSettings::default()
+                };
+                solve_bits_and_threads(&problem, &start, settings, &stop, arch)
+            };
+            let (first, on) = run(1, 0, detected);
+            assert_eq!(on, 1);
+            assert!(first.0.2 > 1, "ran {} iterations", first.0.2);
+            for (threads, domains) in [(2, 0), (4, 0), (2, 3), (4, 8)] {
+                let (bits, on) = run(threads, domains, detected);
+                assert_eq!(on, 1, "{threads} threads, {domains} domains ran on {on}");
+                assert_eq!(bits, first, "{threads} threads, {domains} domains");
+            }
+            assert_eq!(
+                run(2, 3, pulp::Arch::Scalar).0,
+                first,
+                "baseline, problem {k}"
+            );
+        }
+    }
+
+    #[test]
+    fn f32_converges_on_the_pile_in_wide_batches_near_the_f64_solution() {
+        let problem = pile_problem();
+        let start = vec![Impulse::default(); problem.len()];
+        let stop = SolverSettings {
+            tolerance: 1e-5,
+            max_iterations: 2000,
+            ..SolverSettings::default()
+        };
+        let solve = |precision| {
+            let mut solver = PgsSolver::with_settings(PgsSettings {
+                precision,
+                ..PgsSettings::default()
+            });
+            let (mut imp, mut report) = (start.clone(), SolveReport::default());
+            let mut vel = vec![Velocity::default(); problem.bodies.len()];
+            solver
+                .solve(&problem, &stop, &mut imp, &mut vel, &mut report)
+                .unwrap();
+            (imp, report, solver.single.wide_batches())
+        };
+        let (wide, single, batches) = solve(Precision::F32);
+        let (exact, double, _) = solve(Precision::F64);
+        assert!(batches > 0, "the pile was swept in {batches} wide batches");
+        assert!(single.converged && double.converged);
+        assert!(
+            single.iterations <= 2 * double.iterations,
+            "f32 {} iterations, f64 {}",
+            single.iterations,
+            double.iterations
+        );
+        let scale = exact.iter().map(|i| i.normal.abs()).fold(0.0, Real::max);
+        let gap = wide
+            .iter()
+            .zip(&exact)
+            .map(|(a, b)| {
+                (a.normal - b.normal)
+                    .abs()
+                    .max((a.tangent - b.tangent).abs())
+            })
+            .fold(0.0, Real::max);
+        assert!(
+            gap < 1e-2 * scale,
+            "largest impulse gap {gap}, largest impulse {scale}"
+        );
+    }
+
+    #[test]
+    fn precision_is_a_registry_parameter_and_a_bad_value_a_typed_error() {
+        let mut registry = deepcontact_core::registry::Registry::default();
+        crate::register(&mut registry);
+        assert!(registry.build_solver("pgs:precision=f32").is_ok());
+        assert!(registry.build_solver("pgs:precision=f64").is_ok());
+        let err = registry.build_solver("pgs:precision=f16").err().unwrap();
+        assert!(
+            matches!(
+                &err,
+                deepcontact_core::registry::SpecError::InvalidParameter { param, value, .. }
+                    if param == "precision" && value == "f16"
+            ),
+            "{err}"
+        );
     }
 
     #[test]

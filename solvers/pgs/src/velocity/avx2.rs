@@ -5,7 +5,7 @@
 //! batches of a colour side by side (they share no movable body) lets their chains overlap.
 //! The compiler's own vectorisation of the portable loop does not survive that restructuring,
 //! hence the intrinsics. Two small islands are swept the same way, the k-th batch of one
-//! beside the k-th of the other ([`sweep_two`], for [`crate::velocity_many`]). Every
+//! beside the k-th of the other ([`sweep_two`], for [`crate::velocity::many`]). Every
 //! arithmetic operation is the portable loop's, in its order, on the same IEEE doubles (no
 //! fused multiply-add), and the measures are folded batch by batch, so the bits are the same.
 

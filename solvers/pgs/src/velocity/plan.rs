@@ -21,7 +21,7 @@ impl PgsSolver {
     pub(crate) fn colour(
         &mut self,
         bodies: usize,
-        space: Option<(&crate::z_order::ZOrder, &ContactProblem)>,
+        space: Option<(&crate::threads::z_order::ZOrder, &ContactProblem)>,
     ) {
         const OVERFLOW: u8 = 64;
         self.body_colours.clear();
@@ -86,7 +86,7 @@ impl PgsSolver {
     fn order_colours_in_space(
         &mut self,
         problem: &ContactProblem,
-        z: &crate::z_order::ZOrder,
+        z: &crate::threads::z_order::ZOrder,
         counts: &[u32; 65],
     ) {
         let key = |m: &Manifold| z.key(&problem.points[m.start as usize].point);

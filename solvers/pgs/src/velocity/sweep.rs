@@ -173,7 +173,7 @@ pub(super) fn store<V: Velocities + ?Sized>(vel: &mut V, m: &Manifold, va: Vel, 
 }
 
 /// Body velocities as a sweep reads and writes them: a plain slice on one thread, shared
-/// atomic cells when threads split a colour ([`crate::velocity_chunked`]).
+/// atomic cells when threads split a colour ([`crate::velocity::chunked`]).
 pub(crate) trait Velocities {
     /// Velocity of body `i`.
     fn get(&self, i: u32) -> Vel;

@@ -1,7 +1,7 @@
 //! The chunked sweep of a large island, on one thread or several.
 //!
 //! Each colour's batches are cut into chunks of [`CHUNK`] batches, and its one-at-a-time
-//! manifolds make one item more: the work items of a phase ([`crate::sync::run_phased`]).
+//! manifolds make one item more: the work items of a phase ([`crate::threads::sync::run_phased`]).
 //! Threads claim items (each its own contiguous run of a colour first); manifolds of one
 //! colour share no movable body, so the items of a colour never write the same velocity, and
 //! an item starts only once the earlier colours are done (still Gauss-Seidel: every row sees the latest velocities). Each item's
@@ -13,7 +13,7 @@ use deepcontact_core::{ResidualNorm, SolveReport, SolverSettings};
 
 use std::sync::Mutex;
 
-use crate::sync::{Cell3, phase_starts, run_phased};
+use crate::threads::sync::{Cell3, phase_starts, run_phased};
 use crate::velocity::{
     Batch, LaneSweep, Manifold, Row, Segment, Sweep, Vel, Velocities, Verdict, judge, sweep_batch,
     sweep_manifold,

@@ -1,6 +1,6 @@
 //! An island cut into domains, bands of its contact graph: the partition that the domain plans
-//! of the velocity sweep ([`crate::velocity_domains`]) and of the position pass
-//! ([`crate::position_domains`]) sweep side by side.
+//! of the velocity sweep ([`crate::velocity::domains`]) and of the position pass
+//! ([`crate::position::domains`]) sweep side by side.
 //!
 //! The movable bodies are layered by a breadth-first walk of the constraints between them
 //! (from the lowest-numbered body; the solver numbers bodies in Z-order, so that is a corner

@@ -3,7 +3,7 @@
 //! Points are coloured greedily in problem order so that no two points of a colour move the
 //! same body (immovable bodies never conflict: they are not written), then visited colour by
 //! colour; each colour's points are cut into chunks of [`CHUNK`] points, the work items of a
-//! phase ([`crate::sync::run_phased`]): an item starts once the earlier colours are done. The
+//! phase ([`crate::threads::sync::run_phased`]): an item starts once the earlier colours are done. The
 //! pass's measures are minima and maxima, which do not depend on the order they are folded
 //! in, so the result is the same bits for any thread count.
 
@@ -13,8 +13,8 @@ use deepcontact_core::{ContactProblem, PositionReport, PositionSettings};
 use crate::position::{PassMeasures, PosRow, Poses, correct_point, immovable};
 use std::sync::Mutex;
 
-use crate::sync::{Cell3, phase_starts, run_phased};
-use crate::z_order::ZOrder;
+use crate::threads::sync::{Cell3, phase_starts, run_phased};
+use crate::threads::z_order::ZOrder;
 
 /// Points per chunk: the unit a thread takes.
 pub(crate) const CHUNK: usize = 64;

@@ -7,8 +7,8 @@
 
 use deepcontact_core::{ResidualNorm, SolveReport, SolverSettings};
 
-use crate::domain_sweep::{Part, sweep_parts};
-use crate::partition::Partition;
+use crate::threads::domain_sweep::{Part, sweep_parts};
+use crate::threads::partition::Partition;
 use crate::velocity::{Manifold, PgsSettings, PgsSolver, Row, Sweep, Vel, Verdict, judge, movable};
 
 /// The domains of the domain plan, rebuilt for every solve (buffers reused).

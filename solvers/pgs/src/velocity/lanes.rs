@@ -19,11 +19,11 @@ use std::time::Instant;
 
 use deepcontact_core::{IslandSolve, SolveReport, SolverSettings};
 
+use crate::velocity::many::Progress;
 use crate::velocity::{
     Batch, BatchKernel, Island, KernelOp, LANES, LaneSweep, PgsSolver, Sweep, Vel, Verdict,
     dispatch,
 };
-use crate::velocity_many::Progress;
 
 /// Lanes of a pack: two halves of [`LANES`].
 pub(crate) const PACK: usize = 2 * LANES;

@@ -11,8 +11,8 @@
 
 use std::sync::{Mutex, MutexGuard, PoisonError};
 
-use crate::partition::Partition;
-use crate::sync::{Cell3, Padded, phase_starts, run_phased};
+use crate::threads::partition::Partition;
+use crate::threads::sync::{Cell3, Padded, phase_starts, run_phased};
 
 /// One domain of a partition as the loop sweeps it.
 pub(crate) trait Part: Send {

@@ -9,9 +9,9 @@
 use deepcontact_core::math::Pose;
 use deepcontact_core::{PositionReport, PositionSettings};
 
-use crate::domain_sweep::{Part, sweep_parts};
-use crate::partition::Partition;
 use crate::position::{PassMeasures, PosRow, correct_point};
+use crate::threads::domain_sweep::{Part, sweep_parts};
+use crate::threads::partition::Partition;
 
 /// The domains of the position pass's domain plan (buffers reused from one island to the next).
 #[derive(Debug, Clone, Default)]

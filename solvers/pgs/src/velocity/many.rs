@@ -3,7 +3,7 @@
 //! A small island's sweep is a short chain of dependent operations repeated every iteration
 //! on the same few bodies, so the core idles on its latency. Small islands share nothing, so
 //! their sweeps can overlap: they are packed into the lanes of shared batches
-//! ([`crate::velocity_lanes`]). Each island keeps its own buffers (a solver of its own), its
+//! ([`crate::velocity::lanes`]). Each island keeps its own buffers (a solver of its own), its
 //! own stop rule and iteration count, and its measures folded in its own order: each ends
 //! with the bits it would have alone.
 //!
@@ -42,9 +42,13 @@ impl PgsSolver {
         self.small_islands = small;
     }
 
-    /// Whether this solver's prepared island is swept as batches only, in the plain plan.
+    /// Whether this solver's prepared island is swept as batches only, in the plain plan (in
+    /// `f64`: the packs are).
     pub(crate) fn batches_only(&self, points: usize) -> bool {
-        !self.plans_chunked(points) && !self.segments.is_empty() && self.scratch.is_empty()
+        self.settings.precision == crate::Precision::F64
+            && !self.plans_chunked(points)
+            && !self.segments.is_empty()
+            && self.scratch.is_empty()
     }
 }
 
