@@ -278,6 +278,8 @@ pub fn merge(
         warm_starts: labels,
         runs: keyed.into_iter().map(|(_, run)| run).collect(),
         threads,
+        // Which of the cluster's workers ran a task is Ray's to know, not the parts'.
+        workers_used: 0,
         wall_seconds,
     };
     compare::finish(py, &results, args)

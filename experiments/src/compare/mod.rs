@@ -316,7 +316,8 @@ pub struct Results {
     /// Worker threads in the pool (`Config::threads`, 0 resolved to the core count).
     pub threads: usize,
     /// Workers that ran at least one (solver, seed) job: at most `threads` and the job count.
-    /// It depends on scheduling, like the wall times, and is not written to the outputs.
+    /// It depends on scheduling, like the wall times, and is not written to the outputs; 0
+    /// when not known (results merged from parts run elsewhere).
     pub workers_used: usize,
     /// Wall time of the whole experiment, seconds.
     pub wall_seconds: f64,
