@@ -64,3 +64,9 @@ pub fn cores() -> usize {
     );
     cores
 }
+
+/// The README: its Rust snippets compile (and run, unless marked `no_run`) as this crate's
+/// doctests, so `cargo test --release --workspace --exclude deepcontact-benches` checks them.
+#[cfg(doctest)]
+#[doc = include_str!("../../README.md")]
+pub struct Readme;
