@@ -46,6 +46,6 @@ pub use solver::{
 };
 pub use warm_start::{
     CarriedWarmStart, GuardPolicy, Observation, WarmStart, WarmStartContext, WarmStartError,
-    ZeroWarmStart, check_output,
+    ZeroWarmStart, check_output, project_start,
 };
 pub use world::{MAX_BUDGET, Stage, World, WorldSettings};
