@@ -31,6 +31,14 @@
 //! dependent chains overlap); elsewhere the portable loop runs, one batch at a time. The
 //! arithmetic is the same operations in the same order, so the results are bit-identical
 //! either way.
+//!
+//! The solver most users want: pass [`PgsSolver`] and [`PgsPositionSolver`] to `World::step`, or
+//! solve a hand-built `ContactProblem` with [`PgsSolver`] alone.
+//!
+//! Guides, with code that CI compiles and runs: [embed the solver in your
+//! engine](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/embed.md), [use
+//! deepcontact from your own
+//! crate](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/depend.md).
 #![warn(missing_docs)]
 
 mod domain_sweep;
