@@ -16,6 +16,13 @@
 //!     deepcontact_cli::main_with(registry); // `my-binary compare --warm-starts builtin,mine`
 //! }
 //! ```
+//!
+//! Use it for your own copy of the tool with your providers, scenes or solvers registered.
+//!
+//! Guides, with code that CI compiles and runs: [write a
+//! provider](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/provider.md), [use
+//! deepcontact from your own
+//! crate](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/depend.md).
 #![warn(missing_docs)]
 
 #[cfg(not(any(feature = "tract", feature = "onnxruntime")))]

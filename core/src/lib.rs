@@ -12,6 +12,16 @@
 //!
 //! All public math uses [`nalgebra`] with [`Real`] = `f64`; parry2d's glam
 //! types are confined to the [`math`] module.
+//!
+//! Use it directly to write a provider (implement [`WarmStart`]), to solve contact problems your
+//! engine builds ([`ContactProblem`]), or to build and step a [`World`] in code.
+//!
+//! Guides, with code that CI compiles and runs: [write a
+//! provider](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/provider.md), [embed
+//! the solver in your
+//! engine](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/embed.md), [use
+//! deepcontact from your own
+//! crate](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/depend.md).
 #![warn(missing_docs)]
 
 pub mod body;
@@ -46,6 +56,6 @@ pub use solver::{
 };
 pub use warm_start::{
     CarriedWarmStart, GuardPolicy, Observation, WarmStart, WarmStartContext, WarmStartError,
-    ZeroWarmStart, check_output,
+    ZeroWarmStart, check_output, project_start,
 };
 pub use world::{MAX_BUDGET, Stage, World, WorldSettings};

@@ -263,6 +263,15 @@ pub trait VelocitySolver: Send {
         let _ = (dt, gravity);
     }
 
+    /// Whether the solver clamps a start's tangent impulses onto the friction cone
+    /// `|λt| ≤ μ λn` before iterating (default `true`, as this trait's contract says). A solver
+    /// that applies them as given (PGS with `raw_start`, the original code's choice) returns
+    /// `false`, and the world then measures the start with its tangents as given
+    /// ([`crate::project_start`]).
+    fn projects_start(&self) -> bool {
+        true
+    }
+
     /// Whether the solver moves its islands' bodies itself (default `false`). When `true`,
     /// the world solves each island with [`Self::solve_with_positions`], moves the island's
     /// dynamic bodies by the displacements it returns (instead of `dt ×` their velocity) and
@@ -321,6 +330,9 @@ impl<S: VelocitySolver + ?Sized> VelocitySolver for Box<S> {
     }
     fn begin_step(&mut self, dt: Real, gravity: Vector) {
         (**self).begin_step(dt, gravity);
+    }
+    fn projects_start(&self) -> bool {
+        (**self).projects_start()
     }
     fn owns_positions(&self) -> bool {
         (**self).owns_positions()

@@ -9,7 +9,10 @@ use crate::report::SolveReport;
 #[derive(Debug, Clone, Copy)]
 #[non_exhaustive]
 pub struct Observation<'a> {
-    /// The start the solver actually used: the provider's output, or zeros after a fallback.
+    /// The start the solver actually used: the provider's output (or zeros after a fallback)
+    /// as the solver applied it, projected onto each point's friction cone
+    /// ([`project_start`]; the tangent only where the solver projects it, see
+    /// [`crate::VelocitySolver::projects_start`]).
     pub start: &'a [Impulse],
     /// The impulses the solver ended with, one per point (N·s).
     pub solved: &'a [Impulse],
@@ -176,6 +179,27 @@ pub enum WarmStartError {
     /// The provider itself failed (model error, solver error, ...).
     #[error("provider failure: {0}")]
     Provider(String),
+}
+
+/// Projects a start onto the friction cones of `points` (one per impulse) as the solvers apply
+/// it: a negative normal impulse is raised to 0, and with `tangent` the tangent impulse is
+/// clamped to `|λt| ≤ μ λn` (μ the point's friction). The world measures a start's error
+/// ([`crate::StepReport::mse_normal`]) and hands [`Observation::start`] to the provider after
+/// this projection, so two starts the solver treats alike are measured alike.
+pub fn project_start(points: &[crate::ContactPoint], start: &mut [Impulse], tangent: bool) {
+    for (p, s) in points.iter().zip(start.iter_mut()) {
+        if s.normal < 0.0 {
+            s.normal = 0.0;
+        }
+        if tangent {
+            let bound = p.friction * s.normal;
+            if s.tangent > bound {
+                s.tangent = bound;
+            } else if s.tangent < -bound {
+                s.tangent = -bound;
+            }
+        }
+    }
 }
 
 /// Checks a provider's output: finite everywhere, normal ≥ 0.

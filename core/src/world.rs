@@ -774,6 +774,12 @@ impl World {
         if let Some(e) = work.error.take() {
             return Err(e);
         }
+        // The start as the solver applied it (the solver has its own copy by now).
+        crate::warm_start::project_start(
+            &s.problems[k].points,
+            &mut work.warm,
+            plugins.solver.projects_start(),
+        );
         let ctx = self.island_context(&s.problems, k, &work.carried);
         // What a provider does after the solve is part of its cost.
         let t0 = Instant::now();

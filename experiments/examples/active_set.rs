@@ -1,4 +1,4 @@
-//! What knowing the active set is worth (issue 13, the route after `presolve`).
+//! What knowing the active set is worth (the route after `presolve`, docs/RESEARCH.md).
 //!
 //! `presolve` shows that a start with the load distribution right cuts PGS's iterations
 //! 2.5–3×, but Newton needs ~10 iterations from the carried impulses to find the active set

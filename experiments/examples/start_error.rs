@@ -1,4 +1,4 @@
-//! Where builtin's start error lives, and what it costs (issue 13's diagnosis).
+//! Where builtin's start error lives, and what it costs (the diagnosis of docs/RESEARCH.md).
 //!
 //! Runs piles with `builtin`, records the largest island at chosen steps, and for each:
 //! solves it from the carried start to 1e-10 (λ*, the answer PGS reaches from there),

@@ -36,6 +36,18 @@
 //! let results = compare::run_experiment_with(&config, &registry).unwrap();
 //! compare::write_outputs(&results, "results".as_ref(), true).unwrap();
 //! ```
+//!
+//! Use it to measure your own provider or scene with the same runner, statistics and figures as the
+//! `deepcontact` command (`default-features = false` leaves out the CNNs and tract).
+//!
+//! Guides, with code that CI compiles and runs: [write a
+//! provider](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/provider.md), [embed
+//! the solver in your
+//! engine](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/embed.md), [reproduce
+//! the thesis and run the
+//! suite](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/reproduce.md), [use
+//! deepcontact from your own
+//! crate](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/depend.md).
 #![warn(missing_docs)]
 
 pub mod atomic;

@@ -64,3 +64,30 @@ pub fn cores() -> usize {
     );
     cores
 }
+
+/// The README: its Rust snippets compile (and run, unless marked `no_run`) as this crate's
+/// doctests, so `cargo test --release --workspace --exclude deepcontact-benches` checks them.
+#[cfg(doctest)]
+#[doc = include_str!("../../README.md")]
+pub struct Readme;
+
+/// `docs/guide/provider.md`: its Rust code runs as a doctest.
+#[cfg(doctest)]
+#[doc = include_str!("../../docs/guide/provider.md")]
+pub struct GuideProvider;
+
+/// `docs/guide/embed.md`: its Rust code runs as doctests.
+#[cfg(doctest)]
+#[doc = include_str!("../../docs/guide/embed.md")]
+pub struct GuideEmbed;
+
+/// `docs/guide/depend.md` (TOML and shell only: nothing to run, kept here so a Rust block
+/// added later is checked too).
+#[cfg(doctest)]
+#[doc = include_str!("../../docs/guide/depend.md")]
+pub struct GuideDepend;
+
+/// `docs/guide/reproduce.md` (shell only; see [`GuideDepend`]).
+#[cfg(doctest)]
+#[doc = include_str!("../../docs/guide/reproduce.md")]
+pub struct GuideReproduce;

@@ -575,3 +575,59 @@ fn same_problems_solves_every_start_on_the_drivers_world() {
         "{err}"
     );
 }
+
+#[test]
+fn a_world_built_in_code_runs_through_compare_as_a_registered_scene_and_is_named() {
+    use deepcontact_core::scene::Scene;
+    use deepcontact_core::{BodyDesc, ShapeDesc, Vector};
+    let mut registry = deepcontact_experiments::full_registry();
+    registry.register_scene(
+        "tiny-stack",
+        "count unit boxes on the ground",
+        |p, _seed| {
+            let unit = ShapeDesc::Cuboid {
+                half_width: 0.5,
+                half_height: 0.5,
+            };
+            let ground = ShapeDesc::Cuboid {
+                half_width: 3.0,
+                half_height: 0.5,
+            };
+            let mut bodies = vec![BodyDesc::fixed(ground, Vector::new(0.0, -0.5))];
+            for i in 0..p.u64("count", 2)? {
+                bodies.push(BodyDesc::dynamic(
+                    unit.clone(),
+                    Vector::new(0.0, 0.5 + i as f64),
+                ));
+            }
+            Ok(Scene {
+                name: "tiny-stack".into(),
+                bodies,
+                min: Vector::new(-3.0, -1.0),
+                max: Vector::new(3.0, 4.0),
+            })
+        },
+    );
+    let config = Config {
+        warm_starts: Config::with_warm_starts("none,builtin")
+            .unwrap()
+            .warm_starts,
+        scene_spec: Some("tiny-stack:count=3".parse().unwrap()),
+        seeds: vec![1],
+        steps: 30,
+        progress: false,
+        ..Config::default()
+    };
+    let results = compare::run_experiment_with(&config, &registry).unwrap();
+    let rows = compare::summarize(&results);
+    // The boxes stand on the ground from the first step: two points per manifold or so.
+    assert!(
+        rows.iter()
+            .all(|r| r.contact_steps > 20 && r.mean_contacts >= 4.0)
+    );
+    let md = compare::summary_md(&results, &rows);
+    assert!(
+        md.contains("Scene `tiny-stack:count=3`, seed 1, 30 steps each"),
+        "summary.md names the scene: {md}"
+    );
+}

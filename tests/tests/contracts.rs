@@ -450,3 +450,107 @@ fn the_contact_stop_rule_is_pgs_only_and_stops_a_settled_pile() {
         assert!(err.to_string().contains("pgs only"), "{err}");
     }
 }
+
+/// Starts outside the friction cone: carried normal (0.1 N·s for a new point), tangent
+/// `10 λn + 1`, far beyond `μ λn`. Checks in `observe` that the start it sees is the one the
+/// solver applied and sums, per step, the squared errors the world's MSE must average.
+struct OutsideCone {
+    /// Whether the solver clamps the tangent (the start observed must then be clamped).
+    projected: bool,
+    /// Points whose output tangent left the cone (the case under test was reached).
+    outside: usize,
+    /// Per step: Σ (start − solved)² of the tangents and the number of points.
+    sums: std::collections::BTreeMap<u64, (Real, usize)>,
+}
+
+impl OutsideCone {
+    fn output(ctx: &WarmStartContext<'_>) -> Vec<Impulse> {
+        ctx.carried
+            .iter()
+            .map(|c| {
+                let n = c.map_or(0.1, |c| c.normal);
+                Impulse::new(n, 10.0 * n + 1.0)
+            })
+            .collect()
+    }
+}
+
+impl WarmStart for OutsideCone {
+    fn name(&self) -> &str {
+        "outside-cone"
+    }
+    fn warm_start(
+        &mut self,
+        ctx: &WarmStartContext<'_>,
+        out: &mut [Impulse],
+    ) -> Result<(), WarmStartError> {
+        out.copy_from_slice(&Self::output(ctx));
+        Ok(())
+    }
+    fn observe(&mut self, ctx: &WarmStartContext<'_>, seen: &Observation<'_>) {
+        let sum = self.sums.entry(ctx.step).or_default();
+        for ((given, used), (p, solved)) in Self::output(ctx)
+            .iter()
+            .zip(seen.start)
+            .zip(ctx.problem.points.iter().zip(seen.solved))
+        {
+            let bound = p.friction * given.normal;
+            self.outside += usize::from(given.tangent > bound);
+            let expected = if self.projected {
+                given.tangent.min(bound)
+            } else {
+                given.tangent
+            };
+            assert_eq!(used.normal, given.normal);
+            assert_eq!(used.tangent, expected, "the start as the solver applied it");
+            sum.0 += (used.tangent - solved.tangent).powi(2);
+            sum.1 += 1;
+        }
+    }
+}
+
+#[test]
+fn the_start_observed_and_measured_is_the_start_projected_onto_the_friction_cone() {
+    use deepcontact_pgs::{PgsPositionSolver, PgsSettings};
+    for raw_start in [false, true] {
+        let mut world = build(&scene::pile(12345, 100).unwrap());
+        let mut probe = OutsideCone {
+            projected: !raw_start,
+            outside: 0,
+            sums: Default::default(),
+        };
+        let mut solvers = (
+            PgsSolver::with_settings(PgsSettings {
+                raw_start,
+                ..PgsSettings::default()
+            }),
+            PgsPositionSolver::new(),
+        );
+        let reports =
+            deepcontact_tests::run_with(&mut world, &mut probe, &mut solvers, 60, |_, _| {})
+                .unwrap();
+        assert!(
+            probe.outside > 0,
+            "starts left the cone (raw_start {raw_start})"
+        );
+        // The MSE column averages the same starts' errors over the step's points.
+        let mut measured = 0;
+        for (step, r) in reports.iter().enumerate() {
+            let Some(&(sum, points)) = probe.sums.get(&(step as u64)) else {
+                continue;
+            };
+            assert_eq!(r.contacts, points);
+            let mse = sum / points as Real;
+            assert!(
+                (r.mse_tangent - mse).abs() <= 1e-12 * mse.max(1.0),
+                "step {step}: mse_tangent {} against {mse} (raw_start {raw_start})",
+                r.mse_tangent
+            );
+            measured += 1;
+        }
+        assert!(
+            measured > 10,
+            "steps with contacts were measured: {measured}"
+        );
+    }
+}

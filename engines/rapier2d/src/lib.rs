@@ -47,3 +47,8 @@ pub mod world;
 pub use error::AdapterError;
 pub use hooks::{Grouping, HookSettings, OnFailure, PointKey, StepStats, WarmStartHooks};
 pub use world::{RapierWorld, StepMeasures};
+
+/// `docs/guide/rapier2d.md`: its Rust code compiles and runs as this crate's doctests.
+#[cfg(doctest)]
+#[doc = include_str!("../../../docs/guide/rapier2d.md")]
+pub struct GuideRapier2d;

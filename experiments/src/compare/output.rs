@@ -123,11 +123,16 @@ pub fn summary_md(results: &Results, rows: &[Summary]) -> String {
         (Some(a), _) => format!("seed {a}"),
         _ => String::new(),
     };
+    // The world: the thesis pile, another named scene, or a registered scene spec.
+    let world = match (&c.scene_spec, c.scene.as_str()) {
+        (Some(spec), _) => format!("Scene `{spec}`"),
+        (None, "pile") => format!("Pile of {} circles", c.bodies),
+        (None, name) => format!("Scene `{name}` ({} bodies)", c.bodies),
+    };
     let _ = writeln!(
         s,
-        "Pile of {} circles, {seeds}, {} steps each; velocity iterations capped at {}, tolerance {:e} ({:?} norm); \
+        "{world}, {seeds}, {} steps each; velocity iterations capped at {}, tolerance {:e} ({:?} norm); \
          {} threads, {:.1} s wall time.\n",
-        c.bodies,
         c.steps,
         c.world.solver.max_iterations,
         c.world.solver.tolerance,

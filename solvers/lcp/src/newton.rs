@@ -291,7 +291,7 @@ impl NewtonSolver {
     /// `start + Δ`, projected onto the friction cone, is written to `out`. No line search.
     ///
     /// With `reference` the answer, this is what a predictor of the active set alone would
-    /// buy: the values then follow from one linear solve (docs/RESEARCH.md, issue 13). With
+    /// buy: the values then follow from one linear solve (docs/RESEARCH.md, the diagnosis). With
     /// `reference = start` it is Newton's first step without its line search. Returns the
     /// regularisation used; `out` must have the problem's length.
     pub fn step_on_active_set(

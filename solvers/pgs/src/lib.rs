@@ -35,6 +35,14 @@
 //! **Precision.** The sweep runs in `f64` by default; [`Precision::F32`]
 //! ([`PgsSettings::precision`], `pgs:precision=f32`) runs its iterations in `f32`, eight
 //! single-point manifolds to an AVX2 register, on the calling thread.
+//!
+//! The solver most users want: pass [`PgsSolver`] and [`PgsPositionSolver`] to `World::step`, or
+//! solve a hand-built `ContactProblem` with [`PgsSolver`] alone.
+//!
+//! Guides, with code that CI compiles and runs: [embed the solver in your
+//! engine](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/embed.md), [use
+//! deepcontact from your own
+//! crate](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/depend.md).
 #![warn(missing_docs)]
 
 mod position;

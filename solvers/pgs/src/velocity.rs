@@ -621,6 +621,11 @@ impl VelocitySolver for PgsSolver {
     fn solve_many(&mut self, settings: &SolverSettings, islands: &mut [IslandSolve<'_>]) {
         self.solve_islands(settings, islands);
     }
+
+    /// `false` with [`PgsSettings::raw_start`] (tangents applied as given).
+    fn projects_start(&self) -> bool {
+        !self.settings.raw_start
+    }
 }
 
 #[cfg(test)]

@@ -47,6 +47,17 @@
 //! Islands are independent and the arithmetic does not depend on threads, so results are
 //! bit-identical for any thread count. Buffers are kept in the solver (no allocation per
 //! pass).
+//!
+//! Use it as `soft` in the comparison (`--solvers pgs,soft`) or pass [`SoftSolver`] to
+//! `World::step` (it moves its islands' bodies itself; pass the PGS position solver anyway, it
+//! skips them).
+//!
+//! Guides, with code that CI compiles and runs: [embed the solver in your
+//! engine](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/embed.md), [reproduce
+//! the thesis and run the
+//! suite](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/reproduce.md), [use
+//! deepcontact from your own
+//! crate](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/depend.md).
 #![warn(missing_docs)]
 
 mod integrate;

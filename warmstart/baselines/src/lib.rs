@@ -22,6 +22,14 @@
 //!
 //! [`Rounded`] wraps any provider, so "how much precision does a prediction need" can be
 //! asked of every provider, not just the oracle.
+//!
+//! The providers every comparison measures against; their sources are short examples of the
+//! [`deepcontact_core::WarmStart`] trait.
+//!
+//! Guides, with code that CI compiles and runs: [write a
+//! provider](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/provider.md), [use
+//! deepcontact from your own
+//! crate](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/depend.md).
 #![warn(missing_docs)]
 
 mod best;

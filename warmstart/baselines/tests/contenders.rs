@@ -1,4 +1,4 @@
-//! The classical contenders of issue 13 on a column of circles resting on the ground, whose
+//! The classical contenders (docs/RESEARCH.md) on a column of circles resting on the ground, whose
 //! answer is known: point k from the top carries the weight impulse of the k bodies above
 //! it and its own, `k m g dt`.
 

@@ -18,6 +18,13 @@
 //! let provider = registry.build_provider("graph").unwrap();
 //! assert_eq!(provider.name(), "graph");
 //! ```
+//!
+//! A provider to compare against or to retrain (`models/train/graph.py`).
+//!
+//! Guides, with code that CI compiles and runs: [write a
+//! provider](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/provider.md),
+//! [reproduce the thesis and run the
+//! suite](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/reproduce.md).
 #![warn(missing_docs)]
 
 pub mod card;

@@ -11,9 +11,9 @@ use crate::card::GraphCard;
 use crate::model::{ContactGraphModel, PointInput, Scratch, embedded_path};
 
 /// The shipped model's weights (`models/graph.safetensors`), built into the crate.
-const SHIPPED_WEIGHTS: &[u8] = include_bytes!("../../../models/graph.safetensors");
+const SHIPPED_WEIGHTS: &[u8] = include_bytes!("../model/graph.safetensors");
 /// The shipped model's card (`models/graph.json`).
-const SHIPPED_CARD: &str = include_str!("../../../models/graph.json");
+const SHIPPED_CARD: &str = include_str!("../model/graph.json");
 
 /// Carried impulses corrected by a contact-graph model: per point,
 /// `(max(0, carried_n + dn), carried_t + dt)` with `(dn, dt)` from

@@ -35,6 +35,14 @@
 //! encoder.decode(&output, &points, &mut back).unwrap();
 //! assert!((back[0].normal + back[1].normal - 3.0).abs() < 1e-9); // nothing gained or lost
 //! ```
+//!
+//! Used by the CNN providers and the `grid` oracle; use it directly to move data between contacts
+//! and grids.
+//!
+//! Guides, with code that CI compiles and runs: [write a
+//! provider](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/provider.md),
+//! [reproduce the thesis and run the
+//! suite](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/reproduce.md).
 #![warn(missing_docs)]
 
 mod encode;

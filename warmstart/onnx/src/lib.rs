@@ -16,6 +16,16 @@
 //! let provider = registry.build_provider("pressure").unwrap();
 //! assert_eq!(provider.name(), "pressure");
 //! ```
+//!
+//! Needs an ONNX backend (tract by default, pure Rust; ONNX Runtime with `load-dynamic`) and the
+//! world view, so it runs in deepcontact worlds only.
+//!
+//! Guides, with code that CI compiles and runs: [write a
+//! provider](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/provider.md),
+//! [reproduce the thesis and run the
+//! suite](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/reproduce.md), [use
+//! deepcontact from your own
+//! crate](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/depend.md).
 #![warn(missing_docs)]
 
 #[cfg(not(any(feature = "tract", feature = "load-dynamic")))]

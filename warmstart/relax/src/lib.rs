@@ -19,6 +19,13 @@
 //! let provider = registry.build_provider("learned-sor").unwrap();
 //! assert_eq!(provider.name(), "learned-sor");
 //! ```
+//!
+//! A provider to compare against or to refit (`models/train/relax.py`).
+//!
+//! Guides, with code that CI compiles and runs: [write a
+//! provider](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/provider.md),
+//! [reproduce the thesis and run the
+//! suite](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/reproduce.md).
 #![warn(missing_docs)]
 
 mod error;

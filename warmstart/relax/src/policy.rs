@@ -129,7 +129,7 @@ impl RelaxationPolicy {
     /// The shipped policy (`models/learned-sor.json`, built into the crate).
     pub fn shipped() -> Result<Self, RelaxError> {
         Self::from_json(
-            include_str!("../../../models/learned-sor.json"),
+            include_str!("../model/learned-sor.json"),
             &PathBuf::from("<embedded>/models/learned-sor.json"),
         )
     }
