@@ -289,41 +289,14 @@ impl WarmStart for RelaxedWarmStart {
                 )));
             }
         }
-        let r = &mut self.relaxed;
-        r.clear();
-        r.bodies.extend_from_slice(&problem.bodies);
-        r.points.extend_from_slice(&problem.points);
-        let split = self.config.pairs > 1.0 && ctx.pass_budget.is_none();
-        let cap = match ctx.pass_budget {
-            Some(_) => self.config.budget_omega,
-            None => 2.0,
-        };
-        for &(start, end) in &problem.manifolds {
-            let omega = |i: u32| {
-                let omega = if end > start + 1 {
-                    self.config.pairs
-                } else if self.relaxation.is_some() {
-                    self.omegas[i as usize]
-                } else {
-                    self.config.omega
-                };
-                omega.min(cap)
-            };
-            if end == start + 1 || split {
-                for i in start..end {
-                    let p = &mut r.points[i as usize];
-                    p.normal_mass *= omega(i);
-                    p.tangent_mass *= omega(i);
-                    p.manifold = r.manifolds.len() as u32;
-                    r.manifolds.push((i, i + 1));
-                }
-            } else {
-                for p in &mut r.points[start as usize..end as usize] {
-                    p.manifold = r.manifolds.len() as u32;
-                }
-                r.manifolds.push((start, end));
-            }
-        }
+        let omegas = self.relaxation.is_some().then_some(&self.omegas[..]);
+        relaxed_copy(
+            &mut self.relaxed,
+            problem,
+            &self.config,
+            omegas,
+            ctx.pass_budget.is_some(),
+        );
         // Under a budget the start's own passes come out of the sweeps' share.
         let cap = ctx
             .pass_budget
@@ -388,5 +361,48 @@ impl WarmStart for RelaxedWarmStart {
     /// The start's passes (when it sweeps) and the over-relaxed sweeps, of the last island.
     fn passes_spent(&self) -> u32 {
         self.last_passes
+    }
+}
+
+/// Fills `relaxed` with `problem` whose rows are over-relaxed: each single-point manifold's
+/// effective masses scaled by its factor (`omegas[i]` when a policy gave them, else
+/// `config.omega`); without a budget and with `config.pairs` > 1, each two-point manifold
+/// split into two point rows scaled by `config.pairs`; under a budget every factor capped at
+/// `config.budget_omega`.
+fn relaxed_copy(
+    relaxed: &mut ContactProblem,
+    problem: &ContactProblem,
+    config: &RelaxedConfig,
+    omegas: Option<&[Real]>,
+    budget: bool,
+) {
+    relaxed.clear();
+    relaxed.bodies.extend_from_slice(&problem.bodies);
+    relaxed.points.extend_from_slice(&problem.points);
+    let split = config.pairs > 1.0 && !budget;
+    let cap = if budget { config.budget_omega } else { 2.0 };
+    for &(start, end) in &problem.manifolds {
+        let omega = |i: u32| {
+            let omega = match omegas {
+                _ if end > start + 1 => config.pairs,
+                Some(omegas) => omegas[i as usize],
+                None => config.omega,
+            };
+            omega.min(cap)
+        };
+        if end == start + 1 || split {
+            for i in start..end {
+                let p = &mut relaxed.points[i as usize];
+                p.normal_mass *= omega(i);
+                p.tangent_mass *= omega(i);
+                p.manifold = relaxed.manifolds.len() as u32;
+                relaxed.manifolds.push((i, i + 1));
+            }
+        } else {
+            for p in &mut relaxed.points[start as usize..end as usize] {
+                p.manifold = relaxed.manifolds.len() as u32;
+            }
+            relaxed.manifolds.push((start, end));
+        }
     }
 }
