@@ -485,6 +485,15 @@ pub trait PositionSolver: Send {
         settings: &PositionSettings,
         poses: &mut [Pose],
     ) -> Result<PositionReport, CoreError>;
+
+    /// A pass with the same settings for another thread, which must correct every problem
+    /// to the same bits as this one (default `None`: islands are corrected one after
+    /// another). The world asks for forks when [`crate::WorldSettings::island_threads`] > 1
+    /// and no island holds more than a thread's share of the points; a fork corrects whole
+    /// islands on one thread.
+    fn fork(&self) -> Option<Box<dyn PositionSolver>> {
+        None
+    }
 }
 
 impl<S: PositionSolver + ?Sized> PositionSolver for Box<S> {
@@ -498,5 +507,8 @@ impl<S: PositionSolver + ?Sized> PositionSolver for Box<S> {
         poses: &mut [Pose],
     ) -> Result<PositionReport, CoreError> {
         (**self).solve_positions(problem, settings, poses)
+    }
+    fn fork(&self) -> Option<Box<dyn PositionSolver>> {
+        (**self).fork()
     }
 }

@@ -32,7 +32,9 @@ use crate::math::{Pose, Real, Vector, Velocity};
 use crate::narrow_phase::{NarrowPhase, RawContact};
 use crate::problem::{ContactProblem, PointDesc, ProblemBody};
 use crate::report::{SolveReport, StepReport};
-use crate::solver::{PositionSettings, PositionSolver, SolverSettings, VelocitySolver};
+use crate::solver::{
+    PositionReport, PositionSettings, PositionSolver, SolverSettings, VelocitySolver,
+};
 use crate::warm_start::{GuardPolicy, Observation, WarmStart, WarmStartContext, check_output};
 
 /// The largest pass budget [`WorldSettings::budget`] accepts (a fixed budget is a small
@@ -63,7 +65,9 @@ pub struct WorldSettings {
     pub guard: GuardPolicy,
     /// Threads that solve a step's islands side by side, each with its own copy of the
     /// velocity solver ([`VelocitySolver::fork`]; a solver that cannot fork solves them one
-    /// after another) (default 1; at least 1). Providers are always called on the stepping
+    /// after another), and then correct them side by side with copies of the position pass
+    /// ([`PositionSolver::fork`]), when no island holds more than a thread's share of the
+    /// points (default 1; at least 1). Providers are always called on the stepping
     /// thread in island order, every island's warm start before the first solve and every
     /// observation after the last, whatever this is, so results are bit-identical for any
     /// count.
@@ -213,7 +217,6 @@ struct Scratch {
     islands: Vec<IslandWork>,
     /// Per narrow-phase contact: the impulse carried from the previous step, if its id matched.
     matched: Vec<Option<Impulse>>,
-    poses: Vec<Pose>,
     local_index: Vec<u32>,
     manifold_bodies: Vec<(u32, u32)>,
     dynamic: Vec<bool>,
@@ -246,6 +249,11 @@ struct IslandWork {
     report: SolveReport,
     /// The solve's error, if it failed.
     error: Option<CoreError>,
+    /// The bodies' poses for the position pass, corrected in place.
+    poses: Vec<Pose>,
+    /// The position pass's outcome (`None` before it ran, or after an earlier island's
+    /// failed).
+    corrected: Option<Result<PositionReport, CoreError>>,
 }
 
 impl IslandWork {
@@ -680,21 +688,10 @@ impl World {
             |solver: &mut dyn VelocitySolver, problem: &ContactProblem, w: &mut IslandWork| {
                 w.solve(solver, problem, settings, budget, owns_positions);
             };
-        let threads = self.settings.island_threads.min(s.problems.len());
-        // Side by side only when no island outweighs a thread's share of the points (else
-        // the largest island sets the time, and is better shared out by the solver itself).
-        let balanced = || {
-            let points: usize = s.problems.iter().map(ContactProblem::len).sum();
-            let largest = s.problems.iter().map(ContactProblem::len).max();
-            largest.unwrap_or(0) * threads <= points
-        };
+        let threads = side_by_side(&s.problems, self.settings.island_threads);
         // Every worker, the stepping thread included, on a fork: a fork runs one thread, so
         // the workers share the cores among islands instead of each sharing out its island.
-        let forks: Vec<_> = if threads > 1 && balanced() {
-            (0..threads).map_while(|_| solver.fork()).collect()
-        } else {
-            Vec::new()
-        };
+        let forks: Vec<_> = (0..threads).map_while(|_| solver.fork()).collect();
         if forks.len() < 2 && (budget.is_some() || owns_positions) {
             // Each island has its own share of the budget, or a solver that moves its bodies
             // solves it: one call per island.
@@ -727,37 +724,8 @@ impl World {
             }
             return;
         }
-        // Islands claimed one at a time from a counter, largest first (so that the last to
-        // finish is a small one), each in a slot of its own.
-        let mut order: Vec<usize> = (0..s.problems.len()).collect();
-        order.sort_by_key(|&k| std::cmp::Reverse(s.problems[k].len()));
-        let slots: Vec<_> = s
-            .problems
-            .iter()
-            .zip(&mut s.islands)
-            .map(std::sync::Mutex::new)
-            .collect();
-        let next = std::sync::atomic::AtomicUsize::new(0);
-        let work = |solver: &mut dyn VelocitySolver| {
-            loop {
-                let claim = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                let Some(slot) = order.get(claim).map(|&k| &slots[k]) else {
-                    return;
-                };
-                let mut slot = slot
-                    .lock()
-                    .unwrap_or_else(std::sync::PoisonError::into_inner);
-                let (problem, w) = &mut *slot;
-                solve(solver, problem, w);
-            }
-        };
-        let mut forks = forks.into_iter();
-        let mut first = forks.next().expect("two forks or more");
-        std::thread::scope(|scope| {
-            for mut fork in forks {
-                scope.spawn(move || work(fork.as_mut()));
-            }
-            work(first.as_mut());
+        on_forks(&s.problems, &mut s.islands, forks, |solver, problem, w| {
+            solve(solver.as_mut(), problem, w);
         });
     }
 
@@ -862,7 +830,9 @@ impl World {
         }
     }
 
-    /// The position pass per island (not warm-started).
+    /// The position pass per island (not warm-started): side by side on forks of the pass
+    /// when [`side_by_side`] allows, else one after another. An island's pass reads and
+    /// writes its own bodies' poses only, so the bits are the same either way.
     fn position_pass(
         &mut self,
         s: &mut Scratch,
@@ -879,17 +849,41 @@ impl World {
             report.min_separation = if min_sep.is_finite() { min_sep } else { 0.0 };
             return Ok(());
         }
-        for problem in &s.problems {
-            s.poses.clear();
-            s.poses.extend(problem.bodies.iter().map(|pb| {
+        for (problem, w) in s.problems.iter().zip(&mut s.islands) {
+            w.poses.clear();
+            w.poses.extend(problem.bodies.iter().map(|pb| {
                 let b = &self.bodies[pb.world_index as usize];
                 Pose::new(b.position, b.angle)
             }));
-            let pr =
-                position_solver.solve_positions(problem, &self.settings.position, &mut s.poses)?;
+            w.corrected = None;
+        }
+        let settings = &self.settings.position;
+        let threads = side_by_side(&s.problems, self.settings.island_threads);
+        let forks: Vec<_> = (0..threads).map_while(|_| position_solver.fork()).collect();
+        if forks.len() < 2 {
+            for (problem, w) in s.problems.iter().zip(&mut s.islands) {
+                let corrected = position_solver.solve_positions(problem, settings, &mut w.poses);
+                let failed = corrected.is_err();
+                w.corrected = Some(corrected);
+                if failed {
+                    break;
+                }
+            }
+        } else {
+            on_forks(&s.problems, &mut s.islands, forks, |pass, problem, w| {
+                w.corrected = Some(pass.solve_positions(problem, settings, &mut w.poses));
+            });
+        }
+        // In island order, up to the first failure (the bodies of the islands before it
+        // moved, as if the islands had been corrected one after another).
+        for (problem, w) in s.problems.iter().zip(&mut s.islands) {
+            let Some(corrected) = w.corrected.take() else {
+                break;
+            };
+            let pr = corrected?;
             report.position_iterations = report.position_iterations.max(pr.iterations);
             min_sep = min_sep.min(pr.min_separation);
-            for (pb, pose) in problem.bodies.iter().zip(&s.poses) {
+            for (pb, pose) in problem.bodies.iter().zip(&w.poses) {
                 let body = &mut self.bodies[pb.world_index as usize];
                 if body.kind == BodyKind::Dynamic {
                     body.position = pose.position;
@@ -940,6 +934,64 @@ impl World {
 /// The stop rule of an island under a fixed budget of `budget` passes of which the provider
 /// spent `spent`: exactly the rest, at least one (the minimum equals the cap, so no tolerance
 /// ends it early).
+/// Threads for islands side by side: `island_threads` (at most one per island) when that is
+/// 2 or more and no island outweighs a thread's share of the points, else 0 (one after
+/// another: the largest island would set the time, and is better shared out by the solver
+/// itself).
+fn side_by_side(problems: &[ContactProblem], island_threads: usize) -> usize {
+    let threads = island_threads.min(problems.len());
+    let points: usize = problems.iter().map(ContactProblem::len).sum();
+    let largest = problems.iter().map(ContactProblem::len).max().unwrap_or(0);
+    if threads > 1 && largest * threads <= points {
+        threads
+    } else {
+        0
+    }
+}
+
+/// Runs `job` on every island, each fork on a thread of its own (the calling thread's
+/// included): islands claimed one at a time from a counter, largest first (so that the last
+/// to finish is a small one), each in a slot of its own. An island's result depends on the
+/// island alone, so which fork took it does not show in the bits.
+fn on_forks<F: Send>(
+    problems: &[ContactProblem],
+    islands: &mut [IslandWork],
+    forks: Vec<F>,
+    job: impl Fn(&mut F, &ContactProblem, &mut IslandWork) + Sync,
+) {
+    let mut order: Vec<usize> = (0..problems.len()).collect();
+    order.sort_by_key(|&k| std::cmp::Reverse(problems[k].len()));
+    let slots: Vec<_> = problems
+        .iter()
+        .zip(islands)
+        .map(std::sync::Mutex::new)
+        .collect();
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let work = |fork: &mut F| {
+        loop {
+            let claim = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            let Some(slot) = order.get(claim).map(|&k| &slots[k]) else {
+                return;
+            };
+            let mut slot = slot
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
+            let (problem, w) = &mut *slot;
+            job(fork, problem, w);
+        }
+    };
+    let mut forks = forks.into_iter();
+    let Some(mut first) = forks.next() else {
+        return;
+    };
+    std::thread::scope(|scope| {
+        for mut fork in forks {
+            scope.spawn(move || work(&mut fork));
+        }
+        work(&mut first);
+    });
+}
+
 fn budget_settings(settings: &SolverSettings, budget: u32, spent: u32) -> SolverSettings {
     let passes = budget.saturating_sub(spent).max(1);
     SolverSettings {

@@ -4,7 +4,14 @@
 //! already covered by `compare_writes_every_file_and_ignores_the_thread_count` in
 //! `tests/tests/compare.rs`, so it is not repeated here.
 
-use deepcontact_core::{WorldSettings, scene};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use deepcontact_core::math::Pose;
+use deepcontact_core::{
+    ContactProblem, CoreError, PositionReport, PositionSettings, PositionSolver, WorldSettings,
+    scene,
+};
 use deepcontact_pgs::{PgsPositionSettings, PgsPositionSolver, PgsSettings, PgsSolver};
 use deepcontact_tests::{build, run_with};
 
@@ -206,5 +213,75 @@ fn pile_in_the_domain_plan_ends_in_the_same_bits_on_one_two_and_more_threads_tha
     assert_ne!(
         runs[0], PILE_12345_250_BUILTIN_PGS,
         "the domain plan did not run"
+    );
+}
+
+/// [`PgsPositionSolver`]'s pass, counting the forks the world asked for (forks share the
+/// count): the world forks the pass only to correct islands side by side.
+struct CountingPass {
+    pass: Box<dyn PositionSolver>,
+    forks: Arc<AtomicUsize>,
+}
+
+impl PositionSolver for CountingPass {
+    fn name(&self) -> &str {
+        "counting"
+    }
+
+    fn solve_positions(
+        &mut self,
+        problem: &ContactProblem,
+        settings: &PositionSettings,
+        poses: &mut [Pose],
+    ) -> Result<PositionReport, CoreError> {
+        self.pass.solve_positions(problem, settings, poses)
+    }
+
+    fn fork(&self) -> Option<Box<dyn PositionSolver>> {
+        self.forks.fetch_add(1, Ordering::Relaxed);
+        Some(Box::new(CountingPass {
+            pass: self.pass.fork()?,
+            forks: Arc::clone(&self.forks),
+        }))
+    }
+}
+
+#[test]
+fn position_pass_of_islands_side_by_side_keeps_the_golden_bits() {
+    // Two island threads: the falling pile's many small islands are corrected side by side
+    // (two forks a step), the settled pile's one large island one after another; the run
+    // ends in the golden bits.
+    let mut world = build(&scene::pile(12345, 100).unwrap());
+    world
+        .set_settings(WorldSettings {
+            island_threads: 2,
+            ..WorldSettings::default()
+        })
+        .unwrap();
+    let mut warm = deepcontact_experiments::full_registry()
+        .build_provider("builtin")
+        .unwrap();
+    let forks = Arc::new(AtomicUsize::new(0));
+    let mut pass = CountingPass {
+        pass: Box::new(PgsPositionSolver::new()),
+        forks: Arc::clone(&forks),
+    };
+    let mut solver = PgsSolver::new();
+    for _ in 0..250 {
+        world.step(warm.as_mut(), &mut solver, &mut pass).unwrap();
+    }
+    let words = world
+        .bodies()
+        .iter()
+        .flat_map(|b| b.state().map(f64::to_bits));
+    let hash = fnv1a64(words);
+    let forks = forks.load(Ordering::Relaxed);
+    assert!(
+        forks >= 2,
+        "{forks} forks: no step corrected islands side by side"
+    );
+    assert_eq!(
+        hash, PILE_12345_250_BUILTIN_PGS,
+        "islands corrected side by side ({forks} forks): {hash:#018x}"
     );
 }

@@ -382,6 +382,15 @@ impl PositionSolver for PgsPositionSolver {
         "ngs"
     }
 
+    /// The same settings on one thread: every plan gives the same bits for any thread
+    /// count, so a fork corrects an island as this pass would.
+    fn fork(&self) -> Option<Box<dyn PositionSolver>> {
+        Some(Box::new(Self::with_settings(PgsPositionSettings {
+            threads: 1,
+            ..self.settings
+        })))
+    }
+
     fn solve_positions(
         &mut self,
         problem: &ContactProblem,
