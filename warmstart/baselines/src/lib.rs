@@ -32,6 +32,7 @@
 //! crate](https://github.com/deepcontact/deepcontact/blob/main/docs/guide/depend.md).
 #![warn(missing_docs)]
 
+mod anderson;
 mod best;
 mod by_contact;
 mod constant;
@@ -48,6 +49,7 @@ mod rows;
 mod shock;
 mod tail;
 
+pub use anderson::{AndersonConfig, AndersonWarmStart};
 pub use best::BestOfWarmStart;
 pub use constant::ConstantWarmStart;
 pub use extrapolate::ExtrapolatedWarmStart;

@@ -4,10 +4,10 @@ use deepcontact_core::registry::{Params, ProviderInfo, Registry, SpecError};
 use deepcontact_core::{CarriedWarmStart, Impulse, ResidualNorm, ZeroWarmStart};
 
 use crate::{
-    BestOfWarmStart, ConstantWarmStart, ExtrapolatedWarmStart, KrylovConfig, KrylovWarmStart,
-    OracleConfig, OracleOrder, OracleWarmStart, PresolveConfig, PresolveWarmStart, RandomConfig,
-    RandomWarmStart, RelaxedConfig, RelaxedWarmStart, Rounded, ShockWarmStart, TailConfig,
-    TailWarmStart,
+    AndersonConfig, AndersonWarmStart, BestOfWarmStart, ConstantWarmStart, ExtrapolatedWarmStart,
+    KrylovConfig, KrylovWarmStart, OracleConfig, OracleOrder, OracleWarmStart, PresolveConfig,
+    PresolveWarmStart, RandomConfig, RandomWarmStart, RelaxedConfig, RelaxedWarmStart, Rounded,
+    ShockWarmStart, TailConfig, TailWarmStart,
 };
 
 /// Registers `none`, `builtin`, `random`, `bad`, `copy`, `copy2` and `copy0` (the oracles
@@ -154,6 +154,21 @@ fn register_contenders(registry: &mut Registry) {
         "extrapolate",
         "carried impulses continued linearly in time, λ_t + alpha (λ_t − λ_{t−1}); alpha=0.25 (tuned on seeds 100–109)",
         |p, _| Ok(Box::new(ExtrapolatedWarmStart::new(p.f64("alpha", 0.25)?)?)),
+    );
+    registry.register_provider(
+        "anderson",
+        "builtin refined by Anderson-accelerated PGS sweeps; window=5, sweeps=4 (per map \
+         evaluation), rounds=40, tolerance=1e-4",
+        |p, _| {
+            let d = AndersonConfig::default();
+            let config = AndersonConfig {
+                window: u32_param(p, "window", d.window)?,
+                sweeps: u32_param(p, "sweeps", d.sweeps)?,
+                rounds: u32_param(p, "rounds", d.rounds)?,
+                tolerance: p.f64("tolerance", d.tolerance)?,
+            };
+            Ok(Box::new(AndersonWarmStart::new(config)?))
+        },
     );
     registry.register_provider(
         "krylov",

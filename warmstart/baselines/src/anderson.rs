@@ -1,0 +1,315 @@
+//! The `anderson` provider: carried impulses refined by Anderson-accelerated Gauss-Seidel.
+//!
+//! Let `G(λ)` be `sweeps` PGS sweeps from the impulses λ. PGS iterates `λ ← G(λ)`; on a big
+//! pile the error's slow, load-redistributing modes shrink by `1 − O(μ)` per sweep
+//! (docs/RESEARCH.md). Anderson acceleration (type II, window `m`) keeps the last `m + 1`
+//! images `g_i = G(λ_i)` and residuals `f_i = g_i − λ_i`, finds the combination of the
+//! residual differences closest to cancelling the newest one,
+//! `γ = argmin ‖f_k − ΔF γ‖₂`, and steps to `λ_{k+1} = g_k − ΔG γ`, projected onto each
+//! point's friction cone (`λn ≥ 0`, `|λt| ≤ μ λn`). On a linear map this is GMRES on
+//! `λ = G(λ)`; the projections make it a heuristic, so a safeguard restarts the history (and
+//! takes the plain `g_k`) whenever a residual grows past the last one. The image with the
+//! smallest residual is returned; PGS then finishes from it. The sweeps are provider time
+//! and count as its passes.
+
+use deepcontact_core::{
+    CarriedWarmStart, ContactProblem, Impulse, Real, SpecError, WarmStart, WarmStartContext,
+    WarmStartError,
+};
+use deepcontact_pgs::PgsSolver;
+
+use crate::inner::InnerSolve;
+use crate::rows::in_cone;
+
+/// Parameters of [`AndersonWarmStart`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AndersonConfig {
+    /// Residual differences kept, `m` (default 5, in 1..=[`AndersonWarmStart::MAX_WINDOW`]).
+    pub window: u32,
+    /// PGS sweeps per map evaluation `G` (default 4, in 1..=1000).
+    pub sweeps: u32,
+    /// Most evaluations of `G` per island (default 40, in 1..=10 000).
+    pub rounds: u32,
+    /// Stop once the ∞-norm of a residual `G(λ) − λ` is below this (N·s; default 1e-4, the
+    /// world's tolerance; ≥ 0).
+    pub tolerance: Real,
+}
+
+impl Default for AndersonConfig {
+    fn default() -> Self {
+        Self {
+            window: 5,
+            sweeps: 4,
+            rounds: 40,
+            tolerance: 1e-4,
+        }
+    }
+}
+
+/// Carried impulses refined by Anderson-accelerated PGS sweeps (see the module docs).
+/// Buffers are kept between calls.
+#[derive(Debug)]
+pub struct AndersonWarmStart {
+    config: AndersonConfig,
+    inner: InnerSolve,
+    solver: PgsSolver,
+    /// The current iterate λ_k and its image g_k (impulses).
+    x: Vec<Impulse>,
+    g: Vec<Impulse>,
+    /// The image with the smallest residual so far, and that residual's ∞-norm.
+    best: Vec<Impulse>,
+    /// History, `window + 1` slots of `2n` reals each (ring): images and residuals.
+    images: Vec<Real>,
+    residuals: Vec<Real>,
+    /// Normal equations of the least-squares problem (`m × m` and `m`).
+    gram: Vec<Real>,
+    rhs: Vec<Real>,
+    /// Passes of the last island.
+    last_passes: u32,
+    /// Restarts of the history (a residual grew), in all.
+    restarts: u64,
+}
+
+impl AndersonWarmStart {
+    /// Largest window.
+    pub const MAX_WINDOW: u32 = 16;
+
+    /// A provider under `config` (validated).
+    pub fn new(config: AndersonConfig) -> Result<Self, SpecError> {
+        let invalid = |param: &str, value: String, reason: &str| SpecError::InvalidParameter {
+            spec: "anderson".into(),
+            param: param.into(),
+            value,
+            reason: reason.into(),
+        };
+        if !(1..=Self::MAX_WINDOW).contains(&config.window) {
+            return Err(invalid(
+                "window",
+                config.window.to_string(),
+                "must be in 1..=16",
+            ));
+        }
+        if !(1..=10_000).contains(&config.rounds) {
+            return Err(invalid(
+                "rounds",
+                config.rounds.to_string(),
+                "must be in 1..=10000",
+            ));
+        }
+        let inner = InnerSolve::new("anderson", "sweeps", config.sweeps, 1000, 0.0)?;
+        if !(config.tolerance.is_finite() && config.tolerance >= 0.0) {
+            return Err(invalid(
+                "tolerance",
+                config.tolerance.to_string(),
+                "must be finite and >= 0",
+            ));
+        }
+        Ok(Self {
+            config,
+            inner,
+            solver: PgsSolver::new(),
+            x: Vec::new(),
+            g: Vec::new(),
+            best: Vec::new(),
+            images: Vec::new(),
+            residuals: Vec::new(),
+            gram: Vec::new(),
+            rhs: Vec::new(),
+            last_passes: 0,
+            restarts: 0,
+        })
+    }
+
+    /// `g = G(x)`: the sweeps from `x`; their count is added to the passes.
+    fn image(&mut self, problem: &ContactProblem, cap: u32) -> Result<(), WarmStartError> {
+        self.g.clear();
+        self.g.extend_from_slice(&self.x);
+        self.inner.run(
+            &mut self.solver,
+            problem,
+            &mut self.g,
+            "Anderson's sweeps",
+            Some(cap),
+        )?;
+        self.last_passes += self.inner.passes();
+        Ok(())
+    }
+
+    /// Writes `g` and `g − x` into history slot `slot`; the residual's ∞-norm.
+    fn record(&mut self, slot: usize) -> Real {
+        let n = 2 * self.x.len();
+        let (images, residuals) = (
+            &mut self.images[slot * n..(slot + 1) * n],
+            &mut self.residuals[slot * n..(slot + 1) * n],
+        );
+        let mut norm: Real = 0.0;
+        for (i, (g, x)) in self.g.iter().zip(&self.x).enumerate() {
+            images[2 * i] = g.normal;
+            images[2 * i + 1] = g.tangent;
+            residuals[2 * i] = g.normal - x.normal;
+            residuals[2 * i + 1] = g.tangent - x.tangent;
+            norm = norm
+                .max(residuals[2 * i].abs())
+                .max(residuals[2 * i + 1].abs());
+        }
+        norm
+    }
+
+    /// The accelerated iterate from the `count` newest slots ending at `newest` into `x`,
+    /// projected onto the cones; `false` (and `x` untouched) if the least-squares problem
+    /// is singular.
+    fn mix(&mut self, problem: &ContactProblem, newest: usize, count: usize) -> bool {
+        let n = 2 * self.x.len();
+        let slots = self.config.window as usize + 1;
+        let m = count - 1;
+        let slot = |j: usize| (newest + slots - j) % slots;
+        // ΔF column j = f_{newest−j} − f_{newest−j−1}, j = 0..m.
+        let diff = |v: &[Real], j: usize, i: usize| v[slot(j) * n + i] - v[slot(j + 1) * n + i];
+        self.gram.clear();
+        self.gram.resize(m * m, 0.0);
+        self.rhs.clear();
+        self.rhs.resize(m, 0.0);
+        for i in 0..n {
+            let f = self.residuals[slot(0) * n + i];
+            for a in 0..m {
+                let da = diff(&self.residuals, a, i);
+                self.rhs[a] += da * f;
+                for b in a..m {
+                    self.gram[a * m + b] += da * diff(&self.residuals, b, i);
+                }
+            }
+        }
+        for a in 0..m {
+            for b in 0..a {
+                self.gram[a * m + b] = self.gram[b * m + a];
+            }
+        }
+        // Tikhonov on the diagonal (relative), then Gaussian elimination without pivoting
+        // (the matrix is symmetric positive definite once regularised).
+        let scale = (0..m).map(|a| self.gram[a * m + a]).fold(0.0, Real::max);
+        if !(scale > 0.0 && scale.is_finite()) {
+            return false;
+        }
+        for a in 0..m {
+            self.gram[a * m + a] += 1e-10 * scale;
+        }
+        for k in 0..m {
+            let pivot = self.gram[k * m + k];
+            if pivot <= 1e-14 * scale {
+                return false;
+            }
+            for r in k + 1..m {
+                let factor = self.gram[r * m + k] / pivot;
+                for c in k..m {
+                    self.gram[r * m + c] -= factor * self.gram[k * m + c];
+                }
+                self.rhs[r] -= factor * self.rhs[k];
+            }
+        }
+        for k in (0..m).rev() {
+            let mut s = self.rhs[k];
+            for c in k + 1..m {
+                s -= self.gram[k * m + c] * self.rhs[c];
+            }
+            self.rhs[k] = s / self.gram[k * m + k];
+        }
+        for (i, (x, p)) in self.x.iter_mut().zip(&problem.points).enumerate() {
+            let mut v = [0.0; 2];
+            for (c, value) in v.iter_mut().enumerate() {
+                let r = 2 * i + c;
+                *value = self.images[slot(0) * n + r];
+                for a in 0..m {
+                    *value -= self.rhs[a] * diff(&self.images, a, r);
+                }
+            }
+            *x = in_cone(v[0], v[1], p.friction);
+        }
+        true
+    }
+}
+
+impl WarmStart for AndersonWarmStart {
+    fn name(&self) -> &str {
+        "anderson"
+    }
+
+    fn warm_start(
+        &mut self,
+        ctx: &WarmStartContext<'_>,
+        out: &mut [Impulse],
+    ) -> Result<(), WarmStartError> {
+        self.last_passes = 0;
+        CarriedWarmStart.warm_start(ctx, out)?;
+        if out.is_empty() {
+            return Ok(());
+        }
+        let problem = ctx.problem;
+        let (sweeps, window) = (self.config.sweeps, self.config.window as usize);
+        // Under a budget the provider keeps one pass for the solver at least.
+        let budget = ctx.pass_budget.map(|b| b.saturating_sub(1));
+        let n = out.len();
+        self.x.clear();
+        self.x.extend(
+            out.iter()
+                .zip(&problem.points)
+                .map(|(s, p)| in_cone(s.normal, s.tangent, p.friction)),
+        );
+        self.images.clear();
+        self.images.resize((window + 1) * 2 * n, 0.0);
+        self.residuals.clear();
+        self.residuals.resize((window + 1) * 2 * n, 0.0);
+        let (mut newest, mut count) = (0, 0);
+        let mut best_norm = Real::INFINITY;
+        let mut last_norm = Real::INFINITY;
+        for _ in 0..self.config.rounds {
+            let cap = match budget {
+                Some(b) if self.last_passes >= b => break,
+                Some(b) => sweeps.min(b - self.last_passes),
+                None => sweeps,
+            };
+            self.image(problem, cap)?;
+            let slot = if count == 0 {
+                0
+            } else {
+                (newest + 1) % (window + 1)
+            };
+            let norm = self.record(slot);
+            if norm < best_norm {
+                best_norm = norm;
+                self.best.clear();
+                self.best.extend_from_slice(&self.g);
+            }
+            if norm <= self.config.tolerance || self.inner.passes() < cap {
+                break;
+            }
+            if norm > last_norm {
+                // The mixed step made things worse: forget the history, go on from g.
+                self.restarts += 1;
+                (newest, count) = (0, 0);
+                self.images.copy_within(slot * 2 * n..(slot + 1) * 2 * n, 0);
+                self.residuals
+                    .copy_within(slot * 2 * n..(slot + 1) * 2 * n, 0);
+            } else {
+                newest = slot;
+            }
+            count = (count + 1).min(window + 1);
+            last_norm = norm;
+            if count < 2 || !self.mix(problem, newest, count) {
+                self.x.clear();
+                self.x.extend_from_slice(&self.g);
+            }
+        }
+        if best_norm.is_finite() {
+            out.copy_from_slice(&self.best);
+        }
+        Ok(())
+    }
+
+    fn passes_spent(&self) -> u32 {
+        self.last_passes
+    }
+
+    fn diagnostics(&self) -> Vec<(String, Real)> {
+        vec![("restarts".into(), self.restarts as Real)]
+    }
+}
