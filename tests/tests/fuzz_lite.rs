@@ -212,12 +212,12 @@ proptest! {
     #[test]
     fn parse_specs_never_panics_on_known_names(
         name in prop::sample::select(vec!["none", "builtin", "random", "bad", "copy", "copy2", "copy0", "pgs", "psor", "newton",
-            "extrapolate", "shock", "tail", "krylov", "best", "presolve", "sor", "graph", "graph-file", "learned-sor", "anderson"]),
+            "extrapolate", "shock", "tail", "krylov", "best", "presolve", "sor", "graph", "graph-file", "learned-sor", "anderson", "coarse"]),
         key in prop::sample::select(vec!["seed", "normal_min", "normal_max", "tangent_max", "value", "normal", "tangent",
             "solver", "tolerance", "max_iterations", "decimals", "block", "order", "omega", "assembly",
             "dense_threshold", "reg", "alpha", "blend", "sweeps", "max_rate", "factor", "extrapolate",
             "iterations", "friction", "of", "rounds", "regularization", "on_failed_step", "backtracks",
-            "stop_on_failed_step", "max_backtracks", "omega", "path", "card", "name", "start", "window"]),
+            "stop_on_failed_step", "max_backtracks", "omega", "path", "card", "name", "start", "window", "layer"]),
         value in prop::sample::select(vec!["0", "1", "-1", "nan", "inf", "-inf", "1e308", "-0", "2", "0.5",
             "true", "false", "pgs", "psor", "newton", "copy", "dense", "sparse", "18446744073709551616", "4294967296",
             "0.999", "builtin+none", "best", "nope+builtin", "stop", "retry", ""]),

@@ -35,6 +35,7 @@
 mod anderson;
 mod best;
 mod by_contact;
+mod coarse;
 mod constant;
 mod extrapolate;
 mod inner;
@@ -51,6 +52,7 @@ mod tail;
 
 pub use anderson::{AndersonConfig, AndersonWarmStart};
 pub use best::BestOfWarmStart;
+pub use coarse::{CoarseConfig, CoarseWarmStart};
 pub use constant::ConstantWarmStart;
 pub use extrapolate::ExtrapolatedWarmStart;
 pub use krylov::{KrylovConfig, KrylovWarmStart};

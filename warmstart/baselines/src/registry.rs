@@ -4,10 +4,10 @@ use deepcontact_core::registry::{Params, ProviderInfo, Registry, SpecError};
 use deepcontact_core::{CarriedWarmStart, Impulse, ResidualNorm, ZeroWarmStart};
 
 use crate::{
-    AndersonConfig, AndersonWarmStart, BestOfWarmStart, ConstantWarmStart, ExtrapolatedWarmStart,
-    KrylovConfig, KrylovWarmStart, OracleConfig, OracleOrder, OracleWarmStart, PresolveConfig,
-    PresolveWarmStart, RandomConfig, RandomWarmStart, RelaxedConfig, RelaxedWarmStart, Rounded,
-    ShockWarmStart, TailConfig, TailWarmStart,
+    AndersonConfig, AndersonWarmStart, BestOfWarmStart, CoarseConfig, CoarseWarmStart,
+    ConstantWarmStart, ExtrapolatedWarmStart, KrylovConfig, KrylovWarmStart, OracleConfig,
+    OracleOrder, OracleWarmStart, PresolveConfig, PresolveWarmStart, RandomConfig, RandomWarmStart,
+    RelaxedConfig, RelaxedWarmStart, Rounded, ShockWarmStart, TailConfig, TailWarmStart,
 };
 
 /// Registers `none`, `builtin`, `random`, `bad`, `copy`, `copy2` and `copy0` (the oracles
@@ -168,6 +168,20 @@ fn register_contenders(registry: &mut Registry) {
                 tolerance: p.f64("tolerance", d.tolerance)?,
             };
             Ok(Box::new(AndersonWarmStart::new(config)?))
+        },
+    );
+    registry.register_provider(
+        "coarse",
+        "builtin corrected on a coarse level of horizontal layers between PGS sweeps; \
+         layer=1 (m), sweeps=4 (before and after each correction), rounds=2",
+        |p, _| {
+            let d = CoarseConfig::default();
+            let config = CoarseConfig {
+                layer: p.f64("layer", d.layer)?,
+                sweeps: u32_param(p, "sweeps", d.sweeps)?,
+                rounds: u32_param(p, "rounds", d.rounds)?,
+            };
+            Ok(Box::new(CoarseWarmStart::new(config)?))
         },
     );
     registry.register_provider(

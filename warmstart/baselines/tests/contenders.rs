@@ -9,9 +9,9 @@ use deepcontact_core::{
 };
 use deepcontact_pgs::PgsSolver;
 use deepcontact_warmstart::{
-    AndersonConfig, AndersonWarmStart, BestOfWarmStart, ExtrapolatedWarmStart, KrylovConfig,
-    KrylovWarmStart, PresolveConfig, PresolveWarmStart, RelaxedConfig, RelaxedWarmStart,
-    ShockWarmStart, TailConfig, TailWarmStart,
+    AndersonConfig, AndersonWarmStart, BestOfWarmStart, CoarseConfig, CoarseWarmStart,
+    ExtrapolatedWarmStart, KrylovConfig, KrylovWarmStart, PresolveConfig, PresolveWarmStart,
+    RelaxedConfig, RelaxedWarmStart, ShockWarmStart, TailConfig, TailWarmStart,
 };
 
 const DT: f64 = 0.01;
@@ -665,5 +665,59 @@ fn anderson_loads_a_column_in_fewer_passes_than_pgs_from_the_carried_start() {
         },
     ] {
         assert!(AndersonWarmStart::new(config).is_err(), "{config:?}");
+    }
+}
+
+#[test]
+fn coarse_layers_carry_a_column_its_missing_load_in_one_correction() {
+    // One contact a layer (unit spacing, 1 m layers): the coarse problem is the column's
+    // whole normal system, so one correction finds the loads and PGS from there stops at
+    // once (to the coarse solve's regularisation, 1e-9 of the diagonal); from the carried
+    // start PGS needs hundreds of sweeps.
+    let (problem, answer, carried) = short_of_load(20);
+    let config = CoarseConfig {
+        rounds: 1,
+        sweeps: 1,
+        ..CoarseConfig::default()
+    };
+    let mut coarse = CoarseWarmStart::new(config).unwrap();
+    let start = start_of(&mut coarse, &problem, &carried, 1);
+    assert_eq!(coarse.passes_spent(), 3, "a sweep, the correction, a sweep");
+    for (got, want) in start.iter().zip(&answer) {
+        assert!(
+            (got.normal - want.normal).abs() < 1e-6,
+            "{got:?} vs {want:?}"
+        );
+    }
+    let from_coarse = solve(&problem, &start);
+    let from_carried = solve(
+        &problem,
+        &start_of(&mut CarriedWarmStart, &problem, &carried, 1),
+    );
+    assert_eq!(from_coarse.1.iterations, 1);
+    assert!(
+        from_carried.1.iterations > 100,
+        "{}",
+        from_carried.1.iterations
+    );
+    for config in [
+        CoarseConfig {
+            layer: 0.0,
+            ..CoarseConfig::default()
+        },
+        CoarseConfig {
+            layer: f64::NAN,
+            ..CoarseConfig::default()
+        },
+        CoarseConfig {
+            sweeps: 0,
+            ..CoarseConfig::default()
+        },
+        CoarseConfig {
+            rounds: 0,
+            ..CoarseConfig::default()
+        },
+    ] {
+        assert!(CoarseWarmStart::new(config).is_err(), "{config:?}");
     }
 }

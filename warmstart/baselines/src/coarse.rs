@@ -1,0 +1,273 @@
+//! The `coarse` provider: carried impulses corrected on a coarse level of layers, between
+//! PGS sweeps (a two-grid cycle).
+//!
+//! PGS is slow at the error that redistributes load through a pile: a change of the load
+//! a body carries has to travel down, one contact a sweep (docs/RESEARCH.md). The coarse
+//! level lumps the island's loaded contacts into horizontal layers of height `h` (by the
+//! height of the contact point) and gives each layer one unknown, a normal impulse `c_g`
+//! added to every loaded contact of the layer: `Δλ = P c`, `P` the layers' indicator
+//! columns over the normal rows. The Galerkin coarse problem `(Pᵀ W P) c = Pᵀ r` — `W` the
+//! Delassus operator `J M⁻¹ Jᵀ` (matrix-free), `r = b − J v(λ)` the normal rows' velocity
+//! error — moves a whole layer's load at once. A round is `sweeps` PGS sweeps (smoothing),
+//! the correction (projected onto the friction cones), and `sweeps` sweeps again; the
+//! sweeps and the coarse solve are provider time, each coarse solve counted as one pass.
+
+use deepcontact_core::{
+    CarriedWarmStart, ContactProblem, Impulse, Real, SpecError, Velocity, WarmStart,
+    WarmStartContext, WarmStartError,
+};
+use deepcontact_pgs::PgsSolver;
+
+use crate::inner::InnerSolve;
+use crate::rows::{apply_jt, in_cone, row_velocity, velocities_after};
+
+/// Parameters of [`CoarseWarmStart`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CoarseConfig {
+    /// Height of a layer (m; default 1, two circle radii of the pile; > 0).
+    pub layer: Real,
+    /// PGS sweeps before and after each correction (default 4, in 1..=1000).
+    pub sweeps: u32,
+    /// Rounds of sweeps, correction, sweeps (default 2, in 1..=100).
+    pub rounds: u32,
+}
+
+impl Default for CoarseConfig {
+    fn default() -> Self {
+        Self {
+            layer: 1.0,
+            sweeps: 4,
+            rounds: 2,
+        }
+    }
+}
+
+/// Most layers of an island (taller islands get thicker layers).
+const MAX_LAYERS: usize = 128;
+
+/// Carried impulses corrected on a coarse level of layers between PGS sweeps (see the
+/// module docs). Buffers are kept between calls.
+#[derive(Debug)]
+pub struct CoarseWarmStart {
+    config: CoarseConfig,
+    inner: InnerSolve,
+    solver: PgsSolver,
+    /// Per point: its layer, or `usize::MAX` when not loaded.
+    layer_of: Vec<usize>,
+    /// Row-sized scratch (impulses as rows, a layer's indicator).
+    flat: Vec<Real>,
+    indicator: Vec<Real>,
+    v: Vec<Velocity>,
+    dv: Vec<Velocity>,
+    /// The coarse system (`layers × layers`) and its right-hand side.
+    matrix: Vec<Real>,
+    rhs: Vec<Real>,
+    last_passes: u32,
+}
+
+impl CoarseWarmStart {
+    /// A provider under `config` (validated).
+    pub fn new(config: CoarseConfig) -> Result<Self, SpecError> {
+        let invalid = |param: &str, value: String, reason: &str| SpecError::InvalidParameter {
+            spec: "coarse".into(),
+            param: param.into(),
+            value,
+            reason: reason.into(),
+        };
+        if !(config.layer.is_finite() && config.layer > 0.0) {
+            return Err(invalid(
+                "layer",
+                config.layer.to_string(),
+                "must be finite and > 0",
+            ));
+        }
+        if !(1..=100).contains(&config.rounds) {
+            return Err(invalid(
+                "rounds",
+                config.rounds.to_string(),
+                "must be in 1..=100",
+            ));
+        }
+        let inner = InnerSolve::new("coarse", "sweeps", config.sweeps, 1000, 0.0)?;
+        Ok(Self {
+            config,
+            inner,
+            solver: PgsSolver::new(),
+            layer_of: Vec::new(),
+            flat: Vec::new(),
+            indicator: Vec::new(),
+            v: Vec::new(),
+            dv: Vec::new(),
+            matrix: Vec::new(),
+            rhs: Vec::new(),
+            last_passes: 0,
+        })
+    }
+
+    /// `sweeps` PGS sweeps on `impulses`, counted.
+    fn smooth(
+        &mut self,
+        problem: &ContactProblem,
+        impulses: &mut [Impulse],
+        cap: u32,
+    ) -> Result<(), WarmStartError> {
+        self.inner.run(
+            &mut self.solver,
+            problem,
+            impulses,
+            "coarse sweeps",
+            Some(cap),
+        )?;
+        self.last_passes += self.inner.passes();
+        Ok(())
+    }
+
+    /// The layers of the loaded points; their count (0: nothing to correct).
+    fn layers(&mut self, problem: &ContactProblem, impulses: &[Impulse]) -> usize {
+        let loaded = |k: usize| impulses[k].normal > 0.0;
+        let (lo, hi) = (0..impulses.len())
+            .filter(|&k| loaded(k))
+            .map(|k| problem.points[k].point.y)
+            .fold((Real::INFINITY, Real::NEG_INFINITY), |(lo, hi), y| {
+                (lo.min(y), hi.max(y))
+            });
+        if !(lo.is_finite() && hi.is_finite()) {
+            return 0;
+        }
+        let height = self.config.layer.max((hi - lo) / MAX_LAYERS as Real);
+        let count = (((hi - lo) / height) as usize + 1).min(MAX_LAYERS);
+        self.layer_of.clear();
+        self.layer_of.extend((0..impulses.len()).map(|k| {
+            if loaded(k) {
+                (((problem.points[k].point.y - lo) / height) as usize).min(count - 1)
+            } else {
+                usize::MAX
+            }
+        }));
+        count
+    }
+
+    /// One coarse correction of `impulses` (normal rows of loaded points, by layer).
+    fn correct(&mut self, problem: &ContactProblem, impulses: &mut [Impulse]) {
+        let count = self.layers(problem, impulses);
+        if count == 0 {
+            return;
+        }
+        let rows = 2 * impulses.len();
+        velocities_after(problem, impulses, &mut self.flat, &mut self.v);
+        self.rhs.clear();
+        self.rhs.resize(count, 0.0);
+        for (k, &g) in self.layer_of.iter().enumerate() {
+            if g != usize::MAX {
+                let p = &problem.points[k];
+                self.rhs[g] += p.velocity_bias - row_velocity(problem, 2 * k, &self.v);
+            }
+        }
+        // Column g of Pᵀ W P: W applied to layer g's indicator, summed over each layer.
+        self.matrix.clear();
+        self.matrix.resize(count * count, 0.0);
+        for g in 0..count {
+            self.indicator.clear();
+            self.indicator.resize(rows, 0.0);
+            for (k, &layer) in self.layer_of.iter().enumerate() {
+                if layer == g {
+                    self.indicator[2 * k] = 1.0;
+                }
+            }
+            self.dv.resize(problem.bodies.len(), Velocity::default());
+            apply_jt(problem, &self.indicator, &mut self.dv);
+            for (k, &h) in self.layer_of.iter().enumerate() {
+                if h != usize::MAX {
+                    self.matrix[h * count + g] += row_velocity(problem, 2 * k, &self.dv);
+                }
+            }
+        }
+        if !solve_spd(&mut self.matrix, &mut self.rhs, count) {
+            return;
+        }
+        for ((imp, p), &g) in impulses.iter_mut().zip(&problem.points).zip(&self.layer_of) {
+            if g != usize::MAX {
+                *imp = in_cone(imp.normal + self.rhs[g], imp.tangent, p.friction);
+            }
+        }
+        self.last_passes += 1;
+    }
+}
+
+/// Solves the symmetric positive semi-definite `n × n` system `a x = b` in place (`b`
+/// becomes `x`): a relative Tikhonov term on the diagonal, then elimination without
+/// pivoting. `false` (and `b` unusable) if a pivot vanishes.
+fn solve_spd(a: &mut [Real], b: &mut [Real], n: usize) -> bool {
+    let scale = (0..n).map(|i| a[i * n + i]).fold(0.0, Real::max);
+    if !(scale > 0.0 && scale.is_finite()) {
+        return false;
+    }
+    for i in 0..n {
+        a[i * n + i] += 1e-9 * scale;
+    }
+    for k in 0..n {
+        let pivot = a[k * n + k];
+        if pivot <= 1e-12 * scale {
+            return false;
+        }
+        for r in k + 1..n {
+            let factor = a[r * n + k] / pivot;
+            if factor == 0.0 {
+                continue;
+            }
+            for c in k..n {
+                a[r * n + c] -= factor * a[k * n + c];
+            }
+            b[r] -= factor * b[k];
+        }
+    }
+    for k in (0..n).rev() {
+        let mut s = b[k];
+        for c in k + 1..n {
+            s -= a[k * n + c] * b[c];
+        }
+        b[k] = s / a[k * n + k];
+    }
+    b.iter().all(|x| x.is_finite())
+}
+
+impl WarmStart for CoarseWarmStart {
+    fn name(&self) -> &str {
+        "coarse"
+    }
+
+    fn warm_start(
+        &mut self,
+        ctx: &WarmStartContext<'_>,
+        out: &mut [Impulse],
+    ) -> Result<(), WarmStartError> {
+        self.last_passes = 0;
+        CarriedWarmStart.warm_start(ctx, out)?;
+        if out.is_empty() {
+            return Ok(());
+        }
+        let problem = ctx.problem;
+        let budget = ctx.pass_budget.map(|b| b.saturating_sub(1));
+        let left = |spent: u32| budget.map_or(u32::MAX, |b| b.saturating_sub(spent));
+        for _ in 0..self.config.rounds {
+            for correct in [false, true] {
+                if correct {
+                    if left(self.last_passes) == 0 {
+                        return Ok(());
+                    }
+                    self.correct(problem, out);
+                }
+                let cap = self.config.sweeps.min(left(self.last_passes));
+                if cap == 0 {
+                    return Ok(());
+                }
+                self.smooth(problem, out, cap)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn passes_spent(&self) -> u32 {
+        self.last_passes
+    }
+}
