@@ -34,11 +34,17 @@ pub struct SimulateArgs {
     /// Draw the final state (bodies, walls, contact normals) to this PNG.
     #[arg(long)]
     pub render: Option<std::path::PathBuf>,
-    /// Threads (pgs only): islands solved side by side, the narrow phase's pairs shared, and
-    /// one large island's velocity and position solve shared (from 2048 contact points);
-    /// results bit-identical for any count.
+    /// Threads (pgs only): islands solved and corrected side by side, the narrow phase's pairs
+    /// shared, and one large island's velocity and position solve shared (from 2048 contact
+    /// points); results bit-identical for any count.
     #[arg(long, default_value_t = 1)]
     pub threads: usize,
+    /// Islands with at least this many contact points run the position pass in its domain
+    /// plan, shared by the threads (smaller ones in problem order on one thread). Another
+    /// value than the default gives other, equally valid, bits for the islands in between;
+    /// the same bits for any thread count
+    #[arg(long, default_value_t = SimulateConfig::default().position_parallel_from)]
+    pub position_parallel_from: usize,
     /// Print a table row every this many steps.
     #[arg(long, default_value_t = 25)]
     pub every: u64,
@@ -63,6 +69,7 @@ impl SimulateArgs {
             solver: self.solver.solver_spec()?,
             world: self.solver.preset_world_settings()?,
             threads: self.threads,
+            position_parallel_from: self.position_parallel_from,
         })
     }
 }

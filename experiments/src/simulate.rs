@@ -3,7 +3,7 @@
 use std::time::Instant;
 
 use deepcontact_core::{Registry, Spec, StepReport, World, WorldSettings};
-use deepcontact_pgs::PgsPositionSolver;
+use deepcontact_pgs::{PgsPositionSettings, PgsPositionSolver};
 
 use crate::ExperimentError;
 
@@ -30,6 +30,12 @@ pub struct SimulateConfig {
     /// large island (the solver spec gains `threads=`). Results are bit-identical for any
     /// count.
     pub threads: usize,
+    /// Islands with at least this many contact points run the position pass in its domain
+    /// plan, shared by [`threads`](Self::threads) (default 2048, as
+    /// [`PgsPositionSettings::parallel_min_points`]). Smaller islands are corrected in
+    /// problem order on one thread. Another threshold gives other (equally valid) bits for
+    /// islands between the two, the same bits for any thread count.
+    pub position_parallel_from: usize,
 }
 
 impl Default for SimulateConfig {
@@ -43,6 +49,7 @@ impl Default for SimulateConfig {
             solver: "pgs".into(),
             world: WorldSettings::default(),
             threads: 1,
+            position_parallel_from: PgsPositionSettings::default().parallel_min_points,
         }
     }
 }
@@ -119,7 +126,11 @@ pub fn run_scene(
 ) -> Result<(World, Totals), ExperimentError> {
     let mut warm = registry.build_provider(&config.warm_start)?;
     let mut solver = registry.solver_from_spec(&threaded_spec(&config.solver, config.threads)?)?;
-    let mut position = PgsPositionSolver::with_threads(config.threads);
+    let mut position = PgsPositionSolver::with_settings(PgsPositionSettings {
+        threads: config.threads,
+        parallel_min_points: config.position_parallel_from,
+        ..PgsPositionSettings::default()
+    });
     let scene = crate::scene_for(registry, &config.scene, config.seed, config.bodies)?;
     let mut world = scene.build(WorldSettings {
         island_threads: config.threads.max(1),

@@ -12,6 +12,7 @@ use deepcontact_core::{
     ContactProblem, CoreError, PositionReport, PositionSettings, PositionSolver, WorldSettings,
     scene,
 };
+use deepcontact_experiments::simulate::{SimulateConfig, run_scene};
 use deepcontact_pgs::{PgsPositionSettings, PgsPositionSolver, PgsSettings, PgsSolver};
 use deepcontact_tests::{build, run_with};
 
@@ -284,4 +285,34 @@ fn position_pass_of_islands_side_by_side_keeps_the_golden_bits() {
         hash, PILE_12345_250_BUILTIN_PGS,
         "islands corrected side by side ({forks} forks): {hash:#018x}"
     );
+}
+
+#[test]
+fn simulate_with_a_lower_position_plan_threshold_is_the_same_on_one_and_two_threads() {
+    // From 64 points the pile's settled island is corrected in the domain plan (other bits
+    // than the default's problem order), shared by the threads: the same bits on 1 and 2.
+    let registry = deepcontact_experiments::full_registry();
+    let run = |threads: usize, position_parallel_from: usize| {
+        let config = SimulateConfig {
+            threads,
+            position_parallel_from,
+            steps: 200,
+            ..SimulateConfig::default()
+        };
+        let (world, totals) = run_scene(&config, &registry, |_| {}).unwrap();
+        assert!(
+            totals.mean_contacts > 30.0,
+            "{} contacts",
+            totals.mean_contacts
+        );
+        let words = world
+            .bodies()
+            .iter()
+            .flat_map(|b| b.state().map(f64::to_bits));
+        fnv1a64(words)
+    };
+    let default = run(1, SimulateConfig::default().position_parallel_from);
+    let (one, two) = (run(1, 64), run(2, 64));
+    assert_eq!(one, two, "1 and 2 threads from 64 points");
+    assert_ne!(one, default, "the domain plan did not run");
 }
