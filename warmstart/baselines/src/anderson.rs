@@ -18,7 +18,7 @@ use deepcontact_core::{
 };
 use deepcontact_pgs::PgsSolver;
 
-use crate::inner::InnerSolve;
+use crate::inner::{InnerSolve, in_range};
 use crate::rows::in_cone;
 
 /// Parameters of [`AndersonWarmStart`].
@@ -76,34 +76,18 @@ impl AndersonWarmStart {
 
     /// A provider under `config` (validated).
     pub fn new(config: AndersonConfig) -> Result<Self, SpecError> {
-        let invalid = |param: &str, value: String, reason: &str| SpecError::InvalidParameter {
-            spec: "anderson".into(),
-            param: param.into(),
-            value,
-            reason: reason.into(),
-        };
-        if !(1..=Self::MAX_WINDOW).contains(&config.window) {
-            return Err(invalid(
-                "window",
-                config.window.to_string(),
-                "must be in 1..=16",
-            ));
-        }
-        if !(1..=10_000).contains(&config.rounds) {
-            return Err(invalid(
-                "rounds",
-                config.rounds.to_string(),
-                "must be in 1..=10000",
-            ));
-        }
-        let inner = InnerSolve::new("anderson", "sweeps", config.sweeps, 1000, 0.0)?;
+        in_range("anderson", "window", config.window, 1..=Self::MAX_WINDOW)?;
+        in_range("anderson", "rounds", config.rounds, 1..=10_000)?;
         if !(config.tolerance.is_finite() && config.tolerance >= 0.0) {
-            return Err(invalid(
-                "tolerance",
-                config.tolerance.to_string(),
-                "must be finite and >= 0",
-            ));
+            return Err(SpecError::InvalidParameter {
+                spec: "anderson".into(),
+                param: "tolerance".into(),
+                value: config.tolerance.to_string(),
+                reason: "must be finite and >= 0".into(),
+            });
         }
+        // Every evaluation of G runs all its sweeps (the mixing needs whole images).
+        let inner = InnerSolve::new("anderson", "sweeps", config.sweeps, 1000, 0.0)?;
         Ok(Self {
             config,
             inner,
@@ -184,34 +168,9 @@ impl AndersonWarmStart {
                 self.gram[a * m + b] = self.gram[b * m + a];
             }
         }
-        // Tikhonov on the diagonal (relative), then Gaussian elimination without pivoting
-        // (the matrix is symmetric positive definite once regularised).
-        let scale = (0..m).map(|a| self.gram[a * m + a]).fold(0.0, Real::max);
-        if !(scale > 0.0 && scale.is_finite()) {
+        // The differences are nearly parallel once the iterates settle: a light ridge.
+        if !crate::spd::solve_spd(&mut self.gram, &mut self.rhs, m, 1e-10, 1e-14) {
             return false;
-        }
-        for a in 0..m {
-            self.gram[a * m + a] += 1e-10 * scale;
-        }
-        for k in 0..m {
-            let pivot = self.gram[k * m + k];
-            if pivot <= 1e-14 * scale {
-                return false;
-            }
-            for r in k + 1..m {
-                let factor = self.gram[r * m + k] / pivot;
-                for c in k..m {
-                    self.gram[r * m + c] -= factor * self.gram[k * m + c];
-                }
-                self.rhs[r] -= factor * self.rhs[k];
-            }
-        }
-        for k in (0..m).rev() {
-            let mut s = self.rhs[k];
-            for c in k + 1..m {
-                s -= self.gram[k * m + c] * self.rhs[c];
-            }
-            self.rhs[k] = s / self.gram[k * m + k];
         }
         for (i, (x, p)) in self.x.iter_mut().zip(&problem.points).enumerate() {
             let mut v = [0.0; 2];

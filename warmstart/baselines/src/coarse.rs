@@ -18,7 +18,7 @@ use deepcontact_core::{
 };
 use deepcontact_pgs::PgsSolver;
 
-use crate::inner::InnerSolve;
+use crate::inner::{InnerSolve, in_range};
 use crate::rows::{apply_jt, in_cone, row_velocity, velocities_after};
 
 /// Parameters of [`CoarseWarmStart`].
@@ -68,26 +68,15 @@ pub struct CoarseWarmStart {
 impl CoarseWarmStart {
     /// A provider under `config` (validated).
     pub fn new(config: CoarseConfig) -> Result<Self, SpecError> {
-        let invalid = |param: &str, value: String, reason: &str| SpecError::InvalidParameter {
-            spec: "coarse".into(),
-            param: param.into(),
-            value,
-            reason: reason.into(),
-        };
         if !(config.layer.is_finite() && config.layer > 0.0) {
-            return Err(invalid(
-                "layer",
-                config.layer.to_string(),
-                "must be finite and > 0",
-            ));
+            return Err(SpecError::InvalidParameter {
+                spec: "coarse".into(),
+                param: "layer".into(),
+                value: config.layer.to_string(),
+                reason: "must be finite and > 0".into(),
+            });
         }
-        if !(1..=100).contains(&config.rounds) {
-            return Err(invalid(
-                "rounds",
-                config.rounds.to_string(),
-                "must be in 1..=100",
-            ));
-        }
+        in_range("coarse", "rounds", config.rounds, 1..=100)?;
         let inner = InnerSolve::new("coarse", "sweeps", config.sweeps, 1000, 0.0)?;
         Ok(Self {
             config,
@@ -182,7 +171,7 @@ impl CoarseWarmStart {
                 }
             }
         }
-        if !solve_spd(&mut self.matrix, &mut self.rhs, count) {
+        if !crate::spd::solve_spd(&mut self.matrix, &mut self.rhs, count, 1e-9, 1e-12) {
             return;
         }
         for ((imp, p), &g) in impulses.iter_mut().zip(&problem.points).zip(&self.layer_of) {
@@ -192,43 +181,6 @@ impl CoarseWarmStart {
         }
         self.last_passes += 1;
     }
-}
-
-/// Solves the symmetric positive semi-definite `n × n` system `a x = b` in place (`b`
-/// becomes `x`): a relative Tikhonov term on the diagonal, then elimination without
-/// pivoting. `false` (and `b` unusable) if a pivot vanishes.
-fn solve_spd(a: &mut [Real], b: &mut [Real], n: usize) -> bool {
-    let scale = (0..n).map(|i| a[i * n + i]).fold(0.0, Real::max);
-    if !(scale > 0.0 && scale.is_finite()) {
-        return false;
-    }
-    for i in 0..n {
-        a[i * n + i] += 1e-9 * scale;
-    }
-    for k in 0..n {
-        let pivot = a[k * n + k];
-        if pivot <= 1e-12 * scale {
-            return false;
-        }
-        for r in k + 1..n {
-            let factor = a[r * n + k] / pivot;
-            if factor == 0.0 {
-                continue;
-            }
-            for c in k..n {
-                a[r * n + c] -= factor * a[k * n + c];
-            }
-            b[r] -= factor * b[k];
-        }
-    }
-    for k in (0..n).rev() {
-        let mut s = b[k];
-        for c in k + 1..n {
-            s -= a[k * n + c] * b[c];
-        }
-        b[k] = s / a[k * n + k];
-    }
-    b.iter().all(|x| x.is_finite())
 }
 
 impl WarmStart for CoarseWarmStart {

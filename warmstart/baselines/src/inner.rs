@@ -6,6 +6,24 @@ use deepcontact_core::{
     VelocitySolver, WarmStartError,
 };
 
+/// `value`, `spec`'s parameter `param`, if it lies in `range`; else the error naming the range.
+pub(crate) fn in_range(
+    spec: &str,
+    param: &str,
+    value: u32,
+    range: std::ops::RangeInclusive<u32>,
+) -> Result<u32, SpecError> {
+    if range.contains(&value) {
+        return Ok(value);
+    }
+    Err(SpecError::InvalidParameter {
+        spec: spec.into(),
+        param: param.into(),
+        value: value.to_string(),
+        reason: format!("must be in {}..={}", range.start(), range.end()),
+    })
+}
+
 /// The inner solve's settings and buffers (kept between calls: no allocation once grown).
 #[derive(Debug, Clone, Default)]
 pub(crate) struct InnerSolve {

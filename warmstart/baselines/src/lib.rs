@@ -48,6 +48,7 @@ mod relaxed;
 mod rounded;
 mod rows;
 mod shock;
+mod spd;
 mod tail;
 
 pub use anderson::{AndersonConfig, AndersonWarmStart};
