@@ -24,6 +24,7 @@ from ._deepcontact import (
     WarmStartError,
     World,
     __version__,
+    CompareArgs as _CompareArgs,
     compare_summary as _compare_summary,
     registry,
 )
@@ -105,20 +106,22 @@ def compare(
         )
         return _frame(rows, as_frame)
     rows = _compare_summary(
-        list(warm_starts),
-        [int(s) for s in seeds],
-        int(steps),
-        list(solvers),
-        int(bodies),
-        scene,
-        float(tolerance),
-        int(max_iterations),
-        norm,
-        guard,
-        int(threads),
-        None if out is None else os.fspath(out),
-        bool(figures),
-        same_problems,
+        _CompareArgs(
+            list(warm_starts),
+            [int(s) for s in seeds],
+            int(steps),
+            list(solvers),
+            int(bodies),
+            scene,
+            float(tolerance),
+            int(max_iterations),
+            norm,
+            guard,
+            int(threads),
+            None if out is None else os.fspath(out),
+            bool(figures),
+            same_problems,
+        )
     )
     return _frame(rows, as_frame)
 

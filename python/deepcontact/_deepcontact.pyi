@@ -175,53 +175,29 @@ class World:
     def kinetic_energy(self) -> float: ...
     def __len__(self) -> int: ...
 
-def compare_summary(
-    warm_starts: Sequence[Any],
-    seeds: Sequence[int],
-    steps: int,
-    solvers: Sequence[str],
-    bodies: int,
-    scene: str,
-    tolerance: float,
-    max_iterations: int,
-    norm: str,
-    guard: str,
-    threads: int,
-    out: Optional[Union[str, PathLike[str]]],
-    figures: bool,
-    same_problems: Optional[str] = None,
-) -> List[dict[str, Any]]: ...
-def compare_part(
-    warm_starts: Sequence[Any],
-    seeds: Sequence[int],
-    steps: int,
-    solvers: Sequence[str],
-    bodies: int,
-    scene: str,
-    tolerance: float,
-    max_iterations: int,
-    norm: str,
-    guard: str,
-    threads: int,
-    same_problems: Optional[str] = None,
-) -> bytes: ...
+class CompareArgs:
+    """The comparison's arguments, passed to compare_summary, compare_part and compare_merge."""
+    def __init__(
+        self,
+        warm_starts: Sequence[Any],
+        seeds: Sequence[int],
+        steps: int,
+        solvers: Sequence[str],
+        bodies: int,
+        scene: str,
+        tolerance: float,
+        max_iterations: int,
+        norm: str,
+        guard: str,
+        threads: int,
+        out: Optional[Union[str, PathLike[str]]] = None,
+        figures: bool = False,
+        same_problems: Optional[str] = None,
+    ) -> None: ...
+
+def compare_summary(args: CompareArgs) -> List[dict[str, Any]]: ...
+def compare_part(args: CompareArgs) -> bytes: ...
 def compare_merge(
-    warm_starts: Sequence[Any],
-    seeds: Sequence[int],
-    steps: int,
-    solvers: Sequence[str],
-    bodies: int,
-    scene: str,
-    tolerance: float,
-    max_iterations: int,
-    norm: str,
-    guard: str,
-    threads: int,
-    out: Optional[Union[str, PathLike[str]]],
-    figures: bool,
-    same_problems: Optional[str],
-    parts: Sequence[bytes],
-    total_threads: int,
-    wall_seconds: float,
+    args: CompareArgs, parts: Sequence[bytes], total_threads: int, wall_seconds: float
 ) -> List[dict[str, Any]]: ...
 def registry() -> Tuple[List[Tuple[str, str]], List[Tuple[str, str]]]: ...

@@ -32,6 +32,7 @@ import sys
 import time
 from typing import Any, Callable, Iterable, List, Optional, Sequence, Union
 
+from ._deepcontact import CompareArgs as _CompareArgs
 from ._deepcontact import DeepContactError
 from ._deepcontact import compare_merge as _compare_merge
 from ._deepcontact import compare_part as _compare_part
@@ -187,18 +188,21 @@ def compare(
     parts = _gather(ray, [task.remote(shared, seed, same_problems) for seed in seeds])
     wall = time.perf_counter() - t0
     cpus = int(ray.cluster_resources().get("CPU", 0))
-    return _compare_merge(
+    args = _CompareArgs(
         common[0], seeds, *common[1:], int(threads), None if out is None else os.fspath(out),
-        bool(figures), same_problems, parts, cpus, wall,
+        bool(figures), same_problems,
     )
+    return _compare_merge(args, parts, cpus, wall)
 
 
 def _compare_task(common, seed, same_problems):
     """One seed's comparison on a worker, as bytes (one thread: the task holds one CPU)."""
     warm_starts, steps, solvers, bodies, scene, tolerance, max_iterations, norm, guard = common
     return _compare_part(
-        warm_starts, [seed], steps, solvers, bodies, scene, tolerance, max_iterations, norm,
-        guard, 1, same_problems,
+        _CompareArgs(
+            warm_starts, [seed], steps, solvers, bodies, scene, tolerance, max_iterations, norm,
+            guard, 1, same_problems=same_problems,
+        )
     )
 
 

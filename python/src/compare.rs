@@ -18,7 +18,10 @@ use crate::world::world_settings;
 /// How often the waiting thread checks for Ctrl-C while the comparison runs.
 const SIGNAL_POLL: Duration = Duration::from_millis(20);
 
-/// The comparison's arguments, as `deepcontact.compare` passes them.
+/// The comparison's arguments (`deepcontact._deepcontact.CompareArgs`), built once by
+/// `deepcontact.compare` or a cluster task and passed to `compare_summary`, `compare_part`
+/// and `compare_merge`.
+#[pyclass(frozen, module = "deepcontact._deepcontact")]
 #[derive(Debug)]
 pub struct CompareArgs {
     /// Warm starts: registry specs or Python providers.
@@ -52,11 +55,53 @@ pub struct CompareArgs {
     pub same_problems: Option<String>,
 }
 
+#[pymethods]
+impl CompareArgs {
+    /// The arguments; `out`, `figures` and `same_problems` are optional (`None`, `False`,
+    /// `None`).
+    #[new]
+    #[pyo3(signature = (warm_starts, seeds, steps, solvers, bodies, scene, tolerance, max_iterations, norm, guard, threads, out=None, figures=false, same_problems=None))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        warm_starts: Vec<Py<PyAny>>,
+        seeds: Vec<u64>,
+        steps: u64,
+        solvers: Vec<String>,
+        bodies: usize,
+        scene: String,
+        tolerance: Real,
+        max_iterations: u32,
+        norm: String,
+        guard: String,
+        threads: usize,
+        out: Option<std::path::PathBuf>,
+        figures: bool,
+        same_problems: Option<String>,
+    ) -> Self {
+        Self {
+            warm_starts,
+            seeds,
+            steps,
+            solvers,
+            bodies,
+            scene,
+            tolerance,
+            max_iterations,
+            norm,
+            guard,
+            threads,
+            out,
+            figures,
+            same_problems,
+        }
+    }
+}
+
 /// Runs the comparison (without the GIL, Ctrl-C checked every few milliseconds) and returns
 /// the summary rows as dicts with the columns of the CLI's `summary.json`.
-pub fn run(py: Python<'_>, args: CompareArgs) -> Result<Py<PyList>, PythonBindingError> {
-    let results = results(py, &args)?;
-    finish(py, &results, &args)
+pub fn run(py: Python<'_>, args: &CompareArgs) -> Result<Py<PyList>, PythonBindingError> {
+    let results = results(py, args)?;
+    finish(py, &results, args)
 }
 
 /// Writes the files of `results` into `args.out` (if any) and returns the summary rows.

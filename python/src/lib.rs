@@ -32,82 +32,21 @@ pub use error::PythonBindingError;
 /// Runs the comparison of the CLI's `compare` and returns its summary rows (see
 /// `deepcontact.compare`, which wraps it).
 #[pyfunction]
-#[pyo3(signature = (warm_starts, seeds, steps, solvers, bodies, scene, tolerance, max_iterations, norm, guard, threads, out, figures, same_problems=None))]
-#[allow(clippy::too_many_arguments)]
 fn compare_summary(
     py: Python<'_>,
-    warm_starts: Vec<Py<PyAny>>,
-    seeds: Vec<u64>,
-    steps: u64,
-    solvers: Vec<String>,
-    bodies: usize,
-    scene: String,
-    tolerance: f64,
-    max_iterations: u32,
-    norm: String,
-    guard: String,
-    threads: usize,
-    out: Option<std::path::PathBuf>,
-    figures: bool,
-    same_problems: Option<String>,
+    args: PyRef<'_, compare::CompareArgs>,
 ) -> Result<Py<pyo3::types::PyList>, PythonBindingError> {
-    compare::run(
-        py,
-        compare::CompareArgs {
-            warm_starts,
-            seeds,
-            steps,
-            solvers,
-            bodies,
-            scene,
-            tolerance,
-            max_iterations,
-            norm,
-            guard,
-            threads,
-            out,
-            figures,
-            same_problems,
-        },
-    )
+    compare::run(py, &args)
 }
 
 /// Runs the comparison of a few seeds and returns its runs as bytes (a part for
-/// `compare_merge`; what a cluster task of `deepcontact.cluster` returns).
+/// `compare_merge`; what a cluster task of `deepcontact.cluster` returns). `args.out` and
+/// `args.figures` are not used: a part writes nothing.
 #[pyfunction]
-#[pyo3(signature = (warm_starts, seeds, steps, solvers, bodies, scene, tolerance, max_iterations, norm, guard, threads, same_problems=None))]
-#[allow(clippy::too_many_arguments)]
 fn compare_part(
     py: Python<'_>,
-    warm_starts: Vec<Py<PyAny>>,
-    seeds: Vec<u64>,
-    steps: u64,
-    solvers: Vec<String>,
-    bodies: usize,
-    scene: String,
-    tolerance: f64,
-    max_iterations: u32,
-    norm: String,
-    guard: String,
-    threads: usize,
-    same_problems: Option<String>,
+    args: PyRef<'_, compare::CompareArgs>,
 ) -> Result<Py<pyo3::types::PyBytes>, PythonBindingError> {
-    let args = compare::CompareArgs {
-        warm_starts,
-        seeds,
-        steps,
-        solvers,
-        bodies,
-        scene,
-        tolerance,
-        max_iterations,
-        norm,
-        guard,
-        threads,
-        out: None,
-        figures: false,
-        same_problems,
-    };
     let bytes = parts::run_part(py, &args)?;
     Ok(pyo3::types::PyBytes::new(py, &bytes).unbind())
 }
@@ -116,44 +55,13 @@ fn compare_part(
 /// rows of the one-machine comparison; `total_threads` and `wall_seconds` are reported as its
 /// threads and wall time.
 #[pyfunction]
-#[pyo3(signature = (warm_starts, seeds, steps, solvers, bodies, scene, tolerance, max_iterations, norm, guard, threads, out, figures, same_problems, parts, total_threads, wall_seconds))]
-#[allow(clippy::too_many_arguments)]
 fn compare_merge(
     py: Python<'_>,
-    warm_starts: Vec<Py<PyAny>>,
-    seeds: Vec<u64>,
-    steps: u64,
-    solvers: Vec<String>,
-    bodies: usize,
-    scene: String,
-    tolerance: f64,
-    max_iterations: u32,
-    norm: String,
-    guard: String,
-    threads: usize,
-    out: Option<std::path::PathBuf>,
-    figures: bool,
-    same_problems: Option<String>,
+    args: PyRef<'_, compare::CompareArgs>,
     parts: Vec<Vec<u8>>,
     total_threads: usize,
     wall_seconds: f64,
 ) -> Result<Py<pyo3::types::PyList>, PythonBindingError> {
-    let args = compare::CompareArgs {
-        warm_starts,
-        seeds,
-        steps,
-        solvers,
-        bodies,
-        scene,
-        tolerance,
-        max_iterations,
-        norm,
-        guard,
-        threads,
-        out,
-        figures,
-        same_problems,
-    };
     parts::merge(py, &args, &parts, total_threads, wall_seconds)
 }
 
@@ -176,6 +84,7 @@ fn registry() -> (Vec<(String, String)>, Vec<(String, String)>) {
 #[pymodule]
 fn _deepcontact(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
+    m.add_class::<compare::CompareArgs>()?;
     m.add_class::<world::PyWorld>()?;
     m.add_class::<world::StepReport>()?;
     m.add_class::<world::Island>()?;

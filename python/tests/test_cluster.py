@@ -235,9 +235,11 @@ def generate_driver(address, out, seeds, options):
 
 
 def test_generate_resumed_after_a_kill_gives_the_one_machine_files(address, tmp_path):
-    seeds, options = list(range(8)), ["--steps", "60", "--no-grids"]
+    # Seeds long enough (300 steps, ~0.3 s each on one worker) that the kill lands while
+    # most are still running: 60-step seeds all finished within one poll of the manifest.
+    seeds, options = list(range(12)), ["--steps", "300", "--no-grids"]
     local, spread = tmp_path / "local", tmp_path / "cluster"
-    subprocess.run([cli(), "generate", "--seeds", "0..8", "--out", str(local), "--quiet",
+    subprocess.run([cli(), "generate", "--seeds", "0..12", "--out", str(local), "--quiet",
                     *options], check=True)
     driver = generate_driver(address, spread, seeds, options)
     manifest = spread / cluster.MANIFEST

@@ -4,7 +4,7 @@ one-machine rows, and refuses a run missing, doubled or foreign, or a damaged pa
 import pytest
 
 import deepcontact
-from deepcontact._deepcontact import compare_merge, compare_part
+from deepcontact._deepcontact import CompareArgs, compare_merge, compare_part
 
 SEEDS = [12345, 12346, 12347]
 STEPS = 50
@@ -14,11 +14,11 @@ TIMING = {"warm_start_ms", "solve_ms", "step_ms", "speedup_vs_none", "speedup_vs
 
 
 def part(seed):
-    return compare_part(ARGS[0], [seed], *ARGS[1:], 1)
+    return compare_part(CompareArgs(ARGS[0], [seed], *ARGS[1:], 1))
 
 
 def merge(parts, seeds=SEEDS):
-    return compare_merge(ARGS[0], seeds, *ARGS[1:], 0, None, False, None, parts, 1, 0.0)
+    return compare_merge(CompareArgs(ARGS[0], seeds, *ARGS[1:], 0), parts, 1, 0.0)
 
 
 @pytest.fixture(scope="module")
