@@ -235,3 +235,85 @@ impl Body {
             + 0.5 * self.inertia * self.angular_velocity.powi(2)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{World, WorldSettings};
+
+    #[test]
+    fn add_body_refuses_a_nan_position_at_once() {
+        let ball = || BodyDesc::dynamic(ShapeDesc::Ball { radius: 0.5 }, Vector::zeros());
+        let material = |f: fn(&mut Material)| {
+            let mut m = Material::default();
+            f(&mut m);
+            ball().with_material(m)
+        };
+        let cases: Vec<(&str, BodyDesc)> = vec![
+            (
+                "position.x",
+                BodyDesc {
+                    position: Vector::new(Real::NAN, 0.0),
+                    ..ball()
+                },
+            ),
+            (
+                "position.y",
+                BodyDesc {
+                    position: Vector::new(0.0, Real::INFINITY),
+                    ..ball()
+                },
+            ),
+            ("angle", ball().with_angle(Real::NAN)),
+            (
+                "linear_velocity.x",
+                BodyDesc {
+                    linear_velocity: Vector::new(Real::NEG_INFINITY, 0.0),
+                    ..ball()
+                },
+            ),
+            (
+                "linear_velocity.y",
+                BodyDesc {
+                    linear_velocity: Vector::new(0.0, Real::NAN),
+                    ..ball()
+                },
+            ),
+            (
+                "angular_velocity",
+                BodyDesc {
+                    angular_velocity: Real::NAN,
+                    ..ball()
+                },
+            ),
+            ("friction", material(|m| m.friction = Real::INFINITY)),
+            ("restitution", material(|m| m.restitution = -0.5)),
+            ("restitution", material(|m| m.restitution = Real::NAN)),
+            ("density", material(|m| m.density = 0.0)),
+            (
+                "radius",
+                BodyDesc::dynamic(ShapeDesc::Ball { radius: Real::NAN }, Vector::zeros()),
+            ),
+        ];
+        let mut world = World::new(WorldSettings::default()).unwrap();
+        world.add_body(&ball()).unwrap();
+        for (field, desc) in &cases {
+            let err = world.add_body(desc).unwrap_err();
+            assert!(
+                matches!(err, CoreError::InvalidBodyParameter { body: 1, field: f, .. } if f == *field),
+                "{field}: {err}"
+            );
+            // Refused at once: the world still holds the one good body.
+            assert_eq!(world.bodies().len(), 1, "{field}");
+            let err =
+                World::with_bodies(WorldSettings::default(), &[ball(), desc.clone()]).unwrap_err();
+            assert!(
+                matches!(err, CoreError::InvalidBodyParameter { body: 1, field: f, .. } if f == *field),
+                "with_bodies, {field}: {err}"
+            );
+        }
+        // Every case was reached, and a good body is still accepted after the refusals.
+        assert_eq!(cases.len(), 11);
+        assert_eq!(world.add_body(&ball()).unwrap(), BodyHandle(1));
+    }
+}

@@ -336,14 +336,19 @@ impl World {
         })
     }
 
-    /// Adds a body; parameters are validated (the error names the body index and field).
+    /// Adds a body; parameters are validated here, before the body is added (a non-finite
+    /// pose or velocity, a negative or non-finite friction or restitution, a dynamic body's
+    /// density not finite and > 0, a shape of no size: a
+    /// [`CoreError::InvalidBodyParameter`] naming the body index and field, or a
+    /// [`CoreError::DegeneratePolygon`]); a refused body leaves the world as it was.
     pub fn add_body(&mut self, desc: &BodyDesc) -> Result<BodyHandle, CoreError> {
         let body = Body::from_desc(desc, self.bodies.len())?;
         self.bodies.push(body);
         Ok(BodyHandle((self.bodies.len() - 1) as u32))
     }
 
-    /// A world holding `bodies`, in order (handle `i` is `bodies[i]`).
+    /// A world holding `bodies`, in order (handle `i` is `bodies[i]`); each is validated as
+    /// by [`Self::add_body`], and the first bad one is the error.
     pub fn with_bodies(settings: WorldSettings, bodies: &[BodyDesc]) -> Result<Self, CoreError> {
         let mut w = Self::new(settings)?;
         for b in bodies {

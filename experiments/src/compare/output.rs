@@ -114,10 +114,22 @@ pub fn summary_csv(rows: &[Summary]) -> Result<Vec<u8>, ExperimentError> {
 
 /// `summary.md`: the summary as a Markdown table with a few lines on how it was measured.
 pub fn summary_md(results: &Results, rows: &[Summary]) -> String {
-    let c = &results.config;
     let several = results.solvers.len() > 1;
     let mut s = String::new();
     let _ = writeln!(s, "# Warm-start comparison\n");
+    md_setup(&mut s, results);
+    md_table_head(&mut s, several);
+    for r in rows {
+        md_table_row(&mut s, r, several);
+    }
+    md_notes(&mut s, rows);
+    s
+}
+
+/// `summary.md`'s paragraph on the run: the world, the seeds, the stop rule, the threads and
+/// the wall time, and the same-problems note where the rows share one driver's problems.
+fn md_setup(s: &mut String, results: &Results) {
+    let c = &results.config;
     let seeds = match (c.seeds.first(), c.seeds.last()) {
         (Some(a), Some(b)) if c.seeds.len() > 1 => format!("{} seeds ({a} to {b})", c.seeds.len()),
         (Some(a), _) => format!("seed {a}"),
@@ -147,6 +159,10 @@ pub fn summary_md(results: &Results, rows: &[Summary]) -> String {
              (its contacts, carried impulses and positions), so the rows compare starts on identical problems.\n"
         );
     }
+}
+
+/// `summary.md`'s table header and alignment row (a `solver` column when several ran).
+fn md_table_head(s: &mut String, several: bool) {
     let head = [
         "warm_start",
         "mean_iterations",
@@ -176,32 +192,38 @@ pub fn summary_md(results: &Results, rows: &[Summary]) -> String {
         if several { "---|" } else { "" },
         ["---:"; 15].join("|").replacen("---:", "---", 1)
     );
-    for r in rows {
-        let solver = if several {
-            format!("{} | ", r.solver)
-        } else {
-            String::new()
-        };
-        let _ = writeln!(
-            s,
-            "| {solver}{} | {:.1} | {:.0} | {} | {:.1} | {:.3} | {:.3} | {:.3} | {:.3e} | {:.3e} | {:.2e} | {:.2e} | {} | {} | {} |",
-            r.warm_start,
-            r.mean_iterations,
-            r.median_iterations,
-            r.capped_steps,
-            r.mean_contacts,
-            r.warm_start_ms,
-            r.solve_ms,
-            r.step_ms,
-            r.mse_normal,
-            r.mse_tangent,
-            r.natural_residual_mean,
-            r.natural_residual_max,
-            r.fallbacks,
-            opt(r.speedup_vs_none, 2),
-            opt(r.speedup_vs_builtin, 2),
-        );
-    }
+}
+
+/// One row of `summary.md`'s table.
+fn md_table_row(s: &mut String, r: &Summary, several: bool) {
+    let solver = if several {
+        format!("{} | ", r.solver)
+    } else {
+        String::new()
+    };
+    let _ = writeln!(
+        s,
+        "| {solver}{} | {:.1} | {:.0} | {} | {:.1} | {:.3} | {:.3} | {:.3} | {:.3e} | {:.3e} | {:.2e} | {:.2e} | {} | {} | {} |",
+        r.warm_start,
+        r.mean_iterations,
+        r.median_iterations,
+        r.capped_steps,
+        r.mean_contacts,
+        r.warm_start_ms,
+        r.solve_ms,
+        r.step_ms,
+        r.mse_normal,
+        r.mse_tangent,
+        r.natural_residual_mean,
+        r.natural_residual_max,
+        r.fallbacks,
+        opt(r.speedup_vs_none, 2),
+        opt(r.speedup_vs_builtin, 2),
+    );
+}
+
+/// `summary.md`'s closing notes: what the columns mean and how the times were taken.
+fn md_notes(s: &mut String, rows: &[Summary]) {
     let _ = writeln!(
         s,
         "\nIterations are those of a step's slowest island. Steps without contacts ({} of {} per warm start here) \
@@ -214,7 +236,6 @@ pub fn summary_md(results: &Results, rows: &[Summary]) -> String {
         rows.first().map_or(0, |r| r.steps - r.contact_steps),
         rows.first().map_or(0, |r| r.steps),
     );
-    s
 }
 
 /// What [`write_outputs`] wrote.

@@ -19,12 +19,25 @@ fn assembly(p: &mut Params<'_>) -> Result<(AssemblyMode, usize), SpecError> {
     Ok((mode, usize::try_from(threshold).unwrap_or(usize::MAX)))
 }
 
+/// A whole-number parameter that must fit a `u32` (a larger one: "too large").
+fn u32_param(p: &mut Params<'_>, key: &'static str, default: u32) -> Result<u32, SpecError> {
+    let value = p.u64(key, u64::from(default))?;
+    u32::try_from(value).map_err(|_| p.invalid(key, &value.to_string(), "too large"))
+}
+
 /// Registers `psor` (`omega=1`, `assembly=auto|dense|sparse`, `dense_threshold=128`),
 /// `newton` (`reg=1e-10`, `assembly`, `dense_threshold`) and `pgs-rescue`
 /// (`trigger=capped|stalled`, `window=100`, `factor=2`, `start=best|iterate|zeros`,
 /// `above=5`, `newton_iterations=300`, `newton_chunk=300`, `newton_progress=0.5`, `newton_tolerance=1e-6`); defaults are
 /// [`PsorSettings::default`], [`NewtonSettings::default`] and [`RescueSettings::default`].
 pub fn register(registry: &mut Registry) {
+    register_psor(registry);
+    register_newton(registry);
+    register_pgs_rescue(registry);
+}
+
+/// `psor`: projected SOR on the assembled Delassus matrix.
+fn register_psor(registry: &mut Registry) {
     registry.register_solver(
         "psor",
         "projected SOR on the assembled Delassus matrix; omega=1 (in (0,2); 1 = PGS without \
@@ -44,6 +57,10 @@ pub fn register(registry: &mut Registry) {
             Ok(Box::new(PsorSolver::with_settings(settings)) as Box<dyn VelocitySolver>)
         },
     );
+}
+
+/// `newton`: semismooth Newton on the natural map.
+fn register_newton(registry: &mut Registry) {
     registry.register_solver(
         "newton",
         "semismooth Newton on the natural map (faer LU, Armijo line search); reg=1e-10 \
@@ -55,13 +72,11 @@ pub fn register(registry: &mut Registry) {
             let (assembly, dense_threshold) = assembly(p)?;
             let stop_on_failed_step =
                 p.choice("stop_on_failed_step", &["true", "false"])? == Some("true");
-            let max_backtracks = p.u64(
+            let max_backtracks = u32_param(
+                p,
                 "max_backtracks",
-                u64::from(NewtonSettings::default().max_backtracks),
+                NewtonSettings::default().max_backtracks,
             )?;
-            let max_backtracks = u32::try_from(max_backtracks).map_err(|_| {
-                p.invalid("max_backtracks", &max_backtracks.to_string(), "too large")
-            })?;
             let settings = NewtonSettings {
                 regularization,
                 stop_on_failed_step,
@@ -76,6 +91,10 @@ pub fn register(registry: &mut Registry) {
             Ok(Box::new(NewtonSolver::with_settings(settings)) as Box<dyn VelocitySolver>)
         },
     );
+}
+
+/// `pgs-rescue`: PGS, then Newton on the islands PGS leaves at its cap.
+fn register_pgs_rescue(registry: &mut Registry) {
     registry.register_solver(
         "pgs-rescue",
         "PGS (default settings), then semismooth Newton on the islands PGS leaves at its cap, \
@@ -100,20 +119,9 @@ pub fn register(registry: &mut Registry) {
                 Some("zeros") => RescueStart::Zeros,
                 Some(_) => RescueStart::Best,
             };
-            let window = p.u64("window", u64::from(d.window))?;
-            let window = u32::try_from(window)
-                .map_err(|_| p.invalid("window", &window.to_string(), "too large"))?;
-            let newton_iterations = p.u64("newton_iterations", u64::from(d.newton_iterations))?;
-            let newton_iterations = u32::try_from(newton_iterations).map_err(|_| {
-                p.invalid(
-                    "newton_iterations",
-                    &newton_iterations.to_string(),
-                    "too large",
-                )
-            })?;
-            let newton_chunk = p.u64("newton_chunk", u64::from(d.newton_chunk))?;
-            let newton_chunk = u32::try_from(newton_chunk)
-                .map_err(|_| p.invalid("newton_chunk", &newton_chunk.to_string(), "too large"))?;
+            let window = u32_param(p, "window", d.window)?;
+            let newton_iterations = u32_param(p, "newton_iterations", d.newton_iterations)?;
+            let newton_chunk = u32_param(p, "newton_chunk", d.newton_chunk)?;
             let settings = RescueSettings {
                 trigger,
                 start,

@@ -15,6 +15,267 @@ use pulp::x86::V3;
 
 use super::{Batch, Island, LANES, LaneSweep, Vel};
 
+/// The AVX2 batch kernel of one precision, written once for both: the `f64` one here (four
+/// lanes of [`Batch`]) and the `f32` one of [`super::single`] (eight lanes of its wide
+/// batches). It defines, in the module that invokes it, `scatter`, the lane registers of a
+/// batch in flight (`InFlight`), the arithmetic (`Ops`, one method per operation over the
+/// given `_mm256_*` intrinsics), the rows of a batch (`start`, `friction`, `normal`,
+/// `finish`), `sweep_one` and `sweep_colour`: the batches of one colour in order, two at a
+/// time. The module supplies `gather` (the lanes' loads written out, one index expression a
+/// lane).
+///
+/// The arguments: `sweep_colour`'s visibility; the register type, the scalar type, the lane
+/// count, the batch, velocity and per-lane measures types; then the nine intrinsics (`set1`,
+/// `setzero`, `add`, `sub`, `mul`, `max`, `min`, `xor`, `andnot`). Each lane's operations are
+/// the same, in the same order, whatever the width.
+macro_rules! avx2_kernel {
+    (
+        $vis:vis fn sweep_colour(
+            $reg:ty,
+            $real:ty,
+            $width:ident,
+            $batch:ty,
+            $vel:ident,
+            $lanes:ty $(,)?
+        ),
+        [$set1:ident, $setzero:ident, $add:ident, $sub:ident, $mul:ident, $max:ident, $min:ident,
+         $xor:ident, $andnot:ident $(,)?] $(,)?
+    ) => {
+        /// [`gather`] reversed: three registers back to the bodies at `index`, in lane order.
+        #[inline(always)]
+        fn scatter(vel: &mut [$vel], index: &[u32; $width], [vx, vy, w]: [$reg; 3]) {
+            let (vx, vy, w): ([$real; $width], [$real; $width], [$real; $width]) =
+                (pulp::cast(vx), pulp::cast(vy), pulp::cast(w));
+            for (lane, &i) in index.iter().enumerate() {
+                vel[i as usize] = $vel {
+                    vx: vx[lane],
+                    vy: vy[lane],
+                    w: w[lane],
+                };
+            }
+        }
+
+        /// The lane registers of one batch in flight: the gathered velocities of its bodies
+        /// and the changes of its two rows.
+        struct InFlight {
+            a: [$reg; 3],
+            b: [$reg; 3],
+            dt: $reg,
+            dn: $reg,
+        }
+
+        /// The arithmetic of a batch: the AVX2 token and the two constants it needs, with one
+        /// method per operation (methods, not closures: a closure is compiled outside the AVX2
+        /// context).
+        #[derive(Clone, Copy)]
+        struct Ops {
+            simd: V3,
+            sign: $reg,
+            zero: $reg,
+        }
+
+        impl Ops {
+            #[inline(always)]
+            fn new(simd: V3) -> Self {
+                Self {
+                    simd,
+                    sign: simd.avx.$set1(-0.0),
+                    zero: simd.avx.$setzero(),
+                }
+            }
+            #[inline(always)]
+            fn add(self, x: $reg, y: $reg) -> $reg {
+                self.simd.avx.$add(x, y)
+            }
+            #[inline(always)]
+            fn sub(self, x: $reg, y: $reg) -> $reg {
+                self.simd.avx.$sub(x, y)
+            }
+            #[inline(always)]
+            fn mul(self, x: $reg, y: $reg) -> $reg {
+                self.simd.avx.$mul(x, y)
+            }
+            /// `x > y ? x : y` per lane (`max` returns the second operand when either is NaN
+            /// or both are equal).
+            #[inline(always)]
+            fn gt(self, x: $reg, y: $reg) -> $reg {
+                self.simd.avx.$max(x, y)
+            }
+            /// `x < y ? x : y` per lane.
+            #[inline(always)]
+            fn lt(self, x: $reg, y: $reg) -> $reg {
+                self.simd.avx.$min(x, y)
+            }
+            #[inline(always)]
+            fn neg(self, x: $reg) -> $reg {
+                self.simd.avx.$xor(x, self.sign)
+            }
+            #[inline(always)]
+            fn abs(self, x: $reg) -> $reg {
+                self.simd.avx.$andnot(self.sign, x)
+            }
+        }
+
+        #[inline(always)]
+        fn ld(x: &[$real; $width]) -> $reg {
+            pulp::cast(*x)
+        }
+
+        /// Gathers batch `b`'s body velocities.
+        #[inline(always)]
+        fn start(o: Ops, b: &$batch, vel: &[$vel]) -> InFlight {
+            InFlight {
+                a: gather(vel, &b.a),
+                b: gather(vel, &b.b),
+                dt: o.zero,
+                dn: o.zero,
+            }
+        }
+
+        /// `apply_normal`/`apply_tangent` of the change `d` along direction `(dx, dy)` with
+        /// arms `(ra, rb)`.
+        #[inline(always)]
+        fn apply(
+            o: Ops,
+            b: &$batch,
+            s: &mut InFlight,
+            d: $reg,
+            dir: ($reg, $reg),
+            arm: ($reg, $reg),
+        ) {
+            let (px, py) = (o.mul(d, dir.0), o.mul(d, dir.1));
+            let (ma, ia, mb, ib) = (ld(&b.ma), ld(&b.ia), ld(&b.mb), ld(&b.ib));
+            s.a[0] = o.sub(s.a[0], o.mul(ma, px));
+            s.a[1] = o.sub(s.a[1], o.mul(ma, py));
+            s.a[2] = o.sub(s.a[2], o.mul(ia, o.mul(d, arm.0)));
+            s.b[0] = o.add(s.b[0], o.mul(mb, px));
+            s.b[1] = o.add(s.b[1], o.mul(mb, py));
+            s.b[2] = o.add(s.b[2], o.mul(ib, o.mul(d, arm.1)));
+        }
+
+        /// The relative velocity `(vB − vA)·dir + ωB rb − ωA ra`, in the portable loop's
+        /// order.
+        #[inline(always)]
+        fn relative(o: Ops, s: &InFlight, dir: ($reg, $reg), arm: ($reg, $reg)) -> $reg {
+            o.sub(
+                o.add(
+                    o.add(
+                        o.mul(o.sub(s.b[0], s.a[0]), dir.0),
+                        o.mul(o.sub(s.b[1], s.a[1]), dir.1),
+                    ),
+                    o.mul(s.b[2], arm.1),
+                ),
+                o.mul(s.a[2], arm.0),
+            )
+        }
+
+        /// Friction rows: `tangent_velocity`, `clamp_sym`, then `apply_tangent`.
+        #[inline(always)]
+        fn friction(o: Ops, b: &mut $batch, s: &mut InFlight) {
+            let (nx, ny) = (ld(&b.nx), ld(&b.ny));
+            let dir = (o.neg(ny), nx);
+            let arm = (ld(&b.rta), ld(&b.rtb));
+            let lt0 = ld(&b.lt);
+            let vt = relative(o, s, dir, arm);
+            let bound = o.mul(ld(&b.friction), ld(&b.ln));
+            let x = o.sub(lt0, o.mul(ld(&b.tangent_mass), vt));
+            // clamp_sym: `x < -bound ? -bound : x`, then `x > bound ? bound : x`.
+            let new = o.lt(bound, o.gt(o.neg(bound), x));
+            let d = o.sub(new, lt0);
+            b.lt = pulp::cast(new);
+            apply(o, b, s, d, dir, arm);
+            s.dt = d;
+        }
+
+        /// Normal rows: `normal_velocity`, `non_negative`, then `apply_normal`.
+        #[inline(always)]
+        fn normal(o: Ops, b: &mut $batch, s: &mut InFlight) {
+            let dir = (ld(&b.nx), ld(&b.ny));
+            let arm = (ld(&b.rna), ld(&b.rnb));
+            let ln0 = ld(&b.ln);
+            let vn = relative(o, s, dir, arm);
+            let new = o.gt(
+                o.zero,
+                o.sub(ln0, o.mul(ld(&b.normal_mass), o.sub(vn, ld(&b.bias)))),
+            );
+            let d = o.sub(new, ln0);
+            b.ln = pulp::cast(new);
+            apply(o, b, s, d, dir, arm);
+            s.dn = d;
+        }
+
+        /// Scatters the movable bodies back (immovable and padding lanes into the sink) and
+        /// folds the batch's measures into `lanes`, friction before normal.
+        #[inline(always)]
+        fn finish<const CONTACT: bool>(
+            o: Ops,
+            b: &$batch,
+            s: InFlight,
+            vel: &mut [$vel],
+            lanes: &mut $lanes,
+        ) {
+            scatter(vel, &b.wa, s.a);
+            scatter(vel, &b.wb, s.b);
+            let (mut max, mut sum_sq) = (ld(&lanes.max), ld(&lanes.sum_sq));
+            for d in [s.dt, s.dn] {
+                max = o.gt(o.abs(d), max);
+                sum_sq = o.add(sum_sq, o.mul(d, d));
+            }
+            lanes.max = pulp::cast(max);
+            lanes.sum_sq = pulp::cast(sum_sq);
+            if CONTACT {
+                let t_pos = o.gt(s.dt, o.zero);
+                let c = o.add(o.mul(s.dn, s.dn), o.mul(t_pos, t_pos));
+                lanes.contact_sq = pulp::cast(o.gt(c, ld(&lanes.contact_sq)));
+            }
+        }
+
+        /// One batch alone.
+        #[inline(always)]
+        fn sweep_one<const CONTACT: bool>(
+            o: Ops,
+            b: &mut $batch,
+            vel: &mut [$vel],
+            lanes: &mut $lanes,
+        ) {
+            let mut s = start(o, b, vel);
+            friction(o, b, &mut s);
+            normal(o, b, &mut s);
+            finish::<CONTACT>(o, b, s, vel, lanes);
+        }
+
+        /// The batches of one colour in order, two at a time: the second's dependent chain
+        /// runs beside the first's (they share no movable body; three or four at a time spill
+        /// registers), the measures folded batch by batch.
+        #[inline(always)]
+        $vis fn sweep_colour<const CONTACT: bool>(
+            simd: V3,
+            batches: &mut [$batch],
+            vel: &mut [$vel],
+            lanes: &mut $lanes,
+        ) {
+            let o = Ops::new(simd);
+            let mut pairs = batches.chunks_exact_mut(2);
+            for pair in &mut pairs {
+                let [b0, b1] = pair else {
+                    unreachable!("chunks of two")
+                };
+                let (mut s0, mut s1) = (start(o, b0, vel), start(o, b1, vel));
+                friction(o, b0, &mut s0);
+                friction(o, b1, &mut s1);
+                normal(o, b0, &mut s0);
+                normal(o, b1, &mut s1);
+                finish::<CONTACT>(o, b0, s0, vel, lanes);
+                finish::<CONTACT>(o, b1, s1, vel, lanes);
+            }
+            for b in pairs.into_remainder() {
+                sweep_one::<CONTACT>(o, b, vel, lanes);
+            }
+        }
+    };
+}
+pub(super) use avx2_kernel;
+
 /// The velocities of four bodies as three registers `(vx₀..₃)`, `(vy₀..₃)`, `(ω₀..₃)`.
 #[inline(always)]
 fn gather(vel: &[Vel], index: &[u32; LANES]) -> [__m256d; 3] {
@@ -33,230 +294,20 @@ fn gather(vel: &[Vel], index: &[u32; LANES]) -> [__m256d; 3] {
     ]
 }
 
-/// [`gather`] reversed: three registers back to the four bodies at `index`, in lane order.
-#[inline(always)]
-fn scatter(vel: &mut [Vel], index: &[u32; LANES], [vx, vy, w]: [__m256d; 3]) {
-    let (vx, vy, w): ([f64; LANES], [f64; LANES], [f64; LANES]) =
-        (pulp::cast(vx), pulp::cast(vy), pulp::cast(w));
-    for (lane, &i) in index.iter().enumerate() {
-        vel[i as usize] = Vel {
-            vx: vx[lane],
-            vy: vy[lane],
-            w: w[lane],
-        };
-    }
-}
-
-/// The lane registers of one batch in flight: the gathered velocities of its bodies and
-/// the changes of its two rows.
-struct InFlight {
-    a: [__m256d; 3],
-    b: [__m256d; 3],
-    dt: __m256d,
-    dn: __m256d,
-}
-
-/// The arithmetic of a batch: the AVX2 token and the two constants it needs, with one method
-/// per operation (methods, not closures: a closure is compiled outside the AVX2 context).
-#[derive(Clone, Copy)]
-struct Ops {
-    simd: V3,
-    sign: __m256d,
-    zero: __m256d,
-}
-
-impl Ops {
-    #[inline(always)]
-    fn new(simd: V3) -> Self {
-        Self {
-            simd,
-            sign: simd.avx._mm256_set1_pd(-0.0),
-            zero: simd.avx._mm256_setzero_pd(),
-        }
-    }
-    #[inline(always)]
-    fn add(self, x: __m256d, y: __m256d) -> __m256d {
-        self.simd.avx._mm256_add_pd(x, y)
-    }
-    #[inline(always)]
-    fn sub(self, x: __m256d, y: __m256d) -> __m256d {
-        self.simd.avx._mm256_sub_pd(x, y)
-    }
-    #[inline(always)]
-    fn mul(self, x: __m256d, y: __m256d) -> __m256d {
-        self.simd.avx._mm256_mul_pd(x, y)
-    }
-    /// `x > y ? x : y` per lane (`maxpd` returns the second operand when either is NaN or
-    /// both are equal).
-    #[inline(always)]
-    fn gt(self, x: __m256d, y: __m256d) -> __m256d {
-        self.simd.avx._mm256_max_pd(x, y)
-    }
-    /// `x < y ? x : y` per lane.
-    #[inline(always)]
-    fn lt(self, x: __m256d, y: __m256d) -> __m256d {
-        self.simd.avx._mm256_min_pd(x, y)
-    }
-    #[inline(always)]
-    fn neg(self, x: __m256d) -> __m256d {
-        self.simd.avx._mm256_xor_pd(x, self.sign)
-    }
-    #[inline(always)]
-    fn abs(self, x: __m256d) -> __m256d {
-        self.simd.avx._mm256_andnot_pd(self.sign, x)
-    }
-}
-
-#[inline(always)]
-fn ld(x: &[f64; LANES]) -> __m256d {
-    pulp::cast(*x)
-}
-
-/// Gathers batch `b`'s body velocities.
-#[inline(always)]
-fn start(o: Ops, b: &Batch, vel: &[Vel]) -> InFlight {
-    InFlight {
-        a: gather(vel, &b.a),
-        b: gather(vel, &b.b),
-        dt: o.zero,
-        dn: o.zero,
-    }
-}
-
-/// `apply_normal`/`apply_tangent` of the change `d` along direction `(dx, dy)` with arms
-/// `(ra, rb)`.
-#[inline(always)]
-fn apply(
-    o: Ops,
-    b: &Batch,
-    s: &mut InFlight,
-    d: __m256d,
-    dir: (__m256d, __m256d),
-    arm: (__m256d, __m256d),
-) {
-    let (px, py) = (o.mul(d, dir.0), o.mul(d, dir.1));
-    let (ma, ia, mb, ib) = (ld(&b.ma), ld(&b.ia), ld(&b.mb), ld(&b.ib));
-    s.a[0] = o.sub(s.a[0], o.mul(ma, px));
-    s.a[1] = o.sub(s.a[1], o.mul(ma, py));
-    s.a[2] = o.sub(s.a[2], o.mul(ia, o.mul(d, arm.0)));
-    s.b[0] = o.add(s.b[0], o.mul(mb, px));
-    s.b[1] = o.add(s.b[1], o.mul(mb, py));
-    s.b[2] = o.add(s.b[2], o.mul(ib, o.mul(d, arm.1)));
-}
-
-/// The relative velocity `(vB − vA)·dir + ωB rb − ωA ra`, in the portable loop's order.
-#[inline(always)]
-fn relative(o: Ops, s: &InFlight, dir: (__m256d, __m256d), arm: (__m256d, __m256d)) -> __m256d {
-    o.sub(
-        o.add(
-            o.add(
-                o.mul(o.sub(s.b[0], s.a[0]), dir.0),
-                o.mul(o.sub(s.b[1], s.a[1]), dir.1),
-            ),
-            o.mul(s.b[2], arm.1),
-        ),
-        o.mul(s.a[2], arm.0),
-    )
-}
-
-/// Friction rows: `tangent_velocity`, `clamp_sym`, then `apply_tangent`.
-#[inline(always)]
-fn friction(o: Ops, b: &mut Batch, s: &mut InFlight) {
-    let (nx, ny) = (ld(&b.nx), ld(&b.ny));
-    let dir = (o.neg(ny), nx);
-    let arm = (ld(&b.rta), ld(&b.rtb));
-    let lt0 = ld(&b.lt);
-    let vt = relative(o, s, dir, arm);
-    let bound = o.mul(ld(&b.friction), ld(&b.ln));
-    let x = o.sub(lt0, o.mul(ld(&b.tangent_mass), vt));
-    // clamp_sym: `x < -bound ? -bound : x`, then `x > bound ? bound : x`.
-    let new = o.lt(bound, o.gt(o.neg(bound), x));
-    let d = o.sub(new, lt0);
-    b.lt = pulp::cast(new);
-    apply(o, b, s, d, dir, arm);
-    s.dt = d;
-}
-
-/// Normal rows: `normal_velocity`, `non_negative`, then `apply_normal`.
-#[inline(always)]
-fn normal(o: Ops, b: &mut Batch, s: &mut InFlight) {
-    let dir = (ld(&b.nx), ld(&b.ny));
-    let arm = (ld(&b.rna), ld(&b.rnb));
-    let ln0 = ld(&b.ln);
-    let vn = relative(o, s, dir, arm);
-    let new = o.gt(
-        o.zero,
-        o.sub(ln0, o.mul(ld(&b.normal_mass), o.sub(vn, ld(&b.bias)))),
-    );
-    let d = o.sub(new, ln0);
-    b.ln = pulp::cast(new);
-    apply(o, b, s, d, dir, arm);
-    s.dn = d;
-}
-
-/// Scatters the movable bodies back (immovable and padding lanes into the sink,
-/// [`Batch::wa`]) and folds the batch's measures into `lanes`, friction before normal.
-#[inline(always)]
-fn finish<const CONTACT: bool>(
-    o: Ops,
-    b: &Batch,
-    s: InFlight,
-    vel: &mut [Vel],
-    lanes: &mut LaneSweep,
-) {
-    scatter(vel, &b.wa, s.a);
-    scatter(vel, &b.wb, s.b);
-    let (mut max, mut sum_sq) = (ld(&lanes.max), ld(&lanes.sum_sq));
-    for d in [s.dt, s.dn] {
-        max = o.gt(o.abs(d), max);
-        sum_sq = o.add(sum_sq, o.mul(d, d));
-    }
-    lanes.max = pulp::cast(max);
-    lanes.sum_sq = pulp::cast(sum_sq);
-    if CONTACT {
-        let t_pos = o.gt(s.dt, o.zero);
-        let c = o.add(o.mul(s.dn, s.dn), o.mul(t_pos, t_pos));
-        lanes.contact_sq = pulp::cast(o.gt(c, ld(&lanes.contact_sq)));
-    }
-}
-
-/// One batch alone.
-#[inline(always)]
-fn sweep_one<const CONTACT: bool>(o: Ops, b: &mut Batch, vel: &mut [Vel], lanes: &mut LaneSweep) {
-    let mut s = start(o, b, vel);
-    friction(o, b, &mut s);
-    normal(o, b, &mut s);
-    finish::<CONTACT>(o, b, s, vel, lanes);
-}
-
-/// The batches of one colour in order, two at a time: the second's dependent chain runs
-/// beside the first's (they share no movable body; three or four at a time spill registers),
-/// the measures folded batch by batch.
-#[inline(always)]
-pub(crate) fn sweep_colour<const CONTACT: bool>(
-    simd: V3,
-    batches: &mut [Batch],
-    vel: &mut [Vel],
-    lanes: &mut LaneSweep,
-) {
-    let o = Ops::new(simd);
-    let mut pairs = batches.chunks_exact_mut(2);
-    for pair in &mut pairs {
-        let [b0, b1] = pair else {
-            unreachable!("chunks of two")
-        };
-        let (mut s0, mut s1) = (start(o, b0, vel), start(o, b1, vel));
-        friction(o, b0, &mut s0);
-        friction(o, b1, &mut s1);
-        normal(o, b0, &mut s0);
-        normal(o, b1, &mut s1);
-        finish::<CONTACT>(o, b0, s0, vel, lanes);
-        finish::<CONTACT>(o, b1, s1, vel, lanes);
-    }
-    for b in pairs.into_remainder() {
-        sweep_one::<CONTACT>(o, b, vel, lanes);
-    }
-}
+avx2_kernel!(
+    pub(crate) fn sweep_colour(__m256d, f64, LANES, Batch, Vel, LaneSweep),
+    [
+        _mm256_set1_pd,
+        _mm256_setzero_pd,
+        _mm256_add_pd,
+        _mm256_sub_pd,
+        _mm256_mul_pd,
+        _mm256_max_pd,
+        _mm256_min_pd,
+        _mm256_xor_pd,
+        _mm256_andnot_pd,
+    ],
+);
 
 /// The batches of two islands side by side, the k-th of one beside the k-th of the other
 /// (the islands share nothing), each island's batches in their order and its measures folded

@@ -23,7 +23,10 @@ mod avx2;
 
 use deepcontact_core::{ResidualNorm, SolveReport, SolverSettings};
 
-use super::{Batch, LANES, Manifold, PgsSolver, Row, Sweep, Vel, Verdict, judge, movable};
+use super::sweep::portable_batch;
+use super::{
+    Batch, LANES, Manifold, PgsSolver, Row, Sweep, Vel, Velocities, Verdict, judge, movable,
+};
 
 /// Lanes of a single-precision batch: two plan batches side by side.
 pub(crate) const WIDE: usize = 2 * LANES;
@@ -34,6 +37,18 @@ struct Vel32 {
     vx: f32,
     vy: f32,
     w: f32,
+}
+
+impl Velocities<Vel32> for [Vel32] {
+    #[inline(always)]
+    fn get(&self, i: u32) -> Vel32 {
+        self[i as usize]
+    }
+
+    #[inline(always)]
+    fn set(&mut self, i: u32, v: Vel32) {
+        self[i as usize] = v;
+    }
 }
 
 impl Vel32 {
@@ -374,7 +389,7 @@ impl WideKernel for Portable {
     #[inline(always)]
     fn sweep<const CONTACT: bool>(self, b: &mut [Batch32], vel: &mut [Vel32], lanes: &mut Lanes) {
         for batch in b {
-            sweep_batch::<CONTACT>(batch, vel, lanes);
+            sweep_batch::<CONTACT, _>(batch, vel, lanes);
         }
     }
 }
@@ -466,68 +481,11 @@ fn non_negative(x: f32) -> f32 {
     if x < 0.0 { 0.0 } else { x }
 }
 
-/// [`WIDE`] single-point manifolds of one colour: the `f64` batch sweep's arithmetic in `f32`.
-#[inline(always)]
-fn sweep_batch<const CONTACT: bool>(b: &mut Batch32, vel: &mut [Vel32], lanes: &mut Lanes) {
-    let mut t_pos = [0.0f32; WIDE];
-    let (mut avx, mut avy, mut aw) = ([0.0f32; WIDE], [0.0f32; WIDE], [0.0f32; WIDE]);
-    let (mut bvx, mut bvy, mut bw) = ([0.0f32; WIDE], [0.0f32; WIDE], [0.0f32; WIDE]);
-    for i in 0..WIDE {
-        let (va, vb) = (vel[b.a[i] as usize], vel[b.b[i] as usize]);
-        (avx[i], avy[i], aw[i]) = (va.vx, va.vy, va.w);
-        (bvx[i], bvy[i], bw[i]) = (vb.vx, vb.vy, vb.w);
-    }
-    for i in 0..WIDE {
-        let vt = (bvx[i] - avx[i]) * -b.ny[i] + (bvy[i] - avy[i]) * b.nx[i] + bw[i] * b.rtb[i]
-            - aw[i] * b.rta[i];
-        let new = clamp_sym(b.lt[i] - b.tangent_mass[i] * vt, b.friction[i] * b.ln[i]);
-        let d = new - b.lt[i];
-        b.lt[i] = new;
-        let (px, py) = (d * -b.ny[i], d * b.nx[i]);
-        avx[i] -= b.ma[i] * px;
-        avy[i] -= b.ma[i] * py;
-        aw[i] -= b.ia[i] * (d * b.rta[i]);
-        bvx[i] += b.mb[i] * px;
-        bvy[i] += b.mb[i] * py;
-        bw[i] += b.ib[i] * (d * b.rtb[i]);
-        lanes.max[i] = lanes.max[i].max(d.abs());
-        lanes.sum_sq[i] += d * d;
-        if CONTACT {
-            t_pos[i] = d.max(0.0);
-        }
-    }
-    for i in 0..WIDE {
-        let vn = (bvx[i] - avx[i]) * b.nx[i] + (bvy[i] - avy[i]) * b.ny[i] + bw[i] * b.rnb[i]
-            - aw[i] * b.rna[i];
-        let new = non_negative(b.ln[i] - b.normal_mass[i] * (vn - b.bias[i]));
-        let d = new - b.ln[i];
-        b.ln[i] = new;
-        let (px, py) = (d * b.nx[i], d * b.ny[i]);
-        avx[i] -= b.ma[i] * px;
-        avy[i] -= b.ma[i] * py;
-        aw[i] -= b.ia[i] * (d * b.rna[i]);
-        bvx[i] += b.mb[i] * px;
-        bvy[i] += b.mb[i] * py;
-        bw[i] += b.ib[i] * (d * b.rnb[i]);
-        lanes.max[i] = lanes.max[i].max(d.abs());
-        lanes.sum_sq[i] += d * d;
-        if CONTACT {
-            lanes.contact_sq[i] = lanes.contact_sq[i].max(d * d + t_pos[i] * t_pos[i]);
-        }
-    }
-    for i in 0..WIDE {
-        vel[b.wa[i] as usize] = Vel32 {
-            vx: avx[i],
-            vy: avy[i],
-            w: aw[i],
-        };
-        vel[b.wb[i] as usize] = Vel32 {
-            vx: bvx[i],
-            vy: bvy[i],
-            w: bw[i],
-        };
-    }
-}
+portable_batch!(
+    /// [`WIDE`] single-point manifolds of one colour: the `f64` batch sweep's arithmetic in
+    /// `f32`.
+    fn sweep_batch(f32, WIDE, Batch32, Vel32, Lanes)
+);
 
 /// Relative normal velocity of row `r`.
 #[inline(always)]

@@ -74,85 +74,111 @@ pub(crate) fn sweep_manifold<const CONTACT: bool, V: Velocities + ?Sized>(
     store(vel, m, va, vb);
 }
 
-/// [`LANES`] single-point manifolds of one colour: gather the body velocities, run the
-/// friction row and the normal row of every lane with exactly the arithmetic of
-/// [`sweep_manifold`] (so each lane's result is bit-identical to it), scatter the movable
-/// bodies back. The lanes' bodies are distinct (one colour), except immovable ones, which
-/// are read but never written (their lanes store into the sink slot instead).
-#[inline(always)]
-pub(crate) fn sweep_batch<const CONTACT: bool, V: Velocities + ?Sized>(
-    b: &mut Batch,
-    vel: &mut V,
-    lanes: &mut LaneSweep,
-) {
-    let mut t_pos = [0.0; LANES];
-    let (mut avx, mut avy, mut aw) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
-    let (mut bvx, mut bvy, mut bw) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
-    for i in 0..LANES {
-        let (va, vb) = (vel.get(b.a[i]), vel.get(b.b[i]));
-        (avx[i], avy[i], aw[i]) = (va.vx, va.vy, va.w);
-        (bvx[i], bvy[i], bw[i]) = (vb.vx, vb.vy, vb.w);
-    }
-    // Friction rows: `tangent_velocity`, clamp, then `apply_tangent`.
-    for i in 0..LANES {
-        let vt = (bvx[i] - avx[i]) * -b.ny[i] + (bvy[i] - avy[i]) * b.nx[i] + bw[i] * b.rtb[i]
-            - aw[i] * b.rta[i];
-        let new = clamp_sym(b.lt[i] - b.tangent_mass[i] * vt, b.friction[i] * b.ln[i]);
-        let d = new - b.lt[i];
-        b.lt[i] = new;
-        let (px, py) = (d * -b.ny[i], d * b.nx[i]);
-        avx[i] -= b.ma[i] * px;
-        avy[i] -= b.ma[i] * py;
-        aw[i] -= b.ia[i] * (d * b.rta[i]);
-        bvx[i] += b.mb[i] * px;
-        bvy[i] += b.mb[i] * py;
-        bw[i] += b.ib[i] * (d * b.rtb[i]);
-        lanes.max[i] = lanes.max[i].max(d.abs());
-        lanes.sum_sq[i] += d * d;
-        if CONTACT {
-            t_pos[i] = d.max(0.0);
+/// The batch sweep of one precision, written once for both: [`sweep_batch`] here (`f64`,
+/// [`LANES`] lanes) and the `f32` one of [`super::single`] (its wide batches). It defines, in
+/// the module that invokes it, `sweep_batch` with the given attributes and visibility over the
+/// given scalar type, lane count, batch, velocity and per-lane measures types (each lane's
+/// operations in the same order whatever the width); it calls that module's `clamp_sym` and
+/// `non_negative`.
+macro_rules! portable_batch {
+    (
+        $(#[$attr:meta])*
+        $vis:vis fn sweep_batch($real:ty, $width:ident, $batch:ty, $vel:ident, $lanes:ty)
+    ) => {
+        $(#[$attr])*
+        #[inline(always)]
+        $vis fn sweep_batch<const CONTACT: bool, V: Velocities<$vel> + ?Sized>(
+            b: &mut $batch,
+            vel: &mut V,
+            lanes: &mut $lanes,
+        ) {
+            let mut t_pos: [$real; $width] = [0.0; $width];
+            let (mut avx, mut avy, mut aw): ([$real; $width], [$real; $width], [$real; $width]) =
+                ([0.0; $width], [0.0; $width], [0.0; $width]);
+            let (mut bvx, mut bvy, mut bw): ([$real; $width], [$real; $width], [$real; $width]) =
+                ([0.0; $width], [0.0; $width], [0.0; $width]);
+            for i in 0..$width {
+                let (va, vb) = (vel.get(b.a[i]), vel.get(b.b[i]));
+                (avx[i], avy[i], aw[i]) = (va.vx, va.vy, va.w);
+                (bvx[i], bvy[i], bw[i]) = (vb.vx, vb.vy, vb.w);
+            }
+            // Friction rows: `tangent_velocity`, clamp, then `apply_tangent`.
+            for i in 0..$width {
+                let vt = (bvx[i] - avx[i]) * -b.ny[i]
+                    + (bvy[i] - avy[i]) * b.nx[i]
+                    + bw[i] * b.rtb[i]
+                    - aw[i] * b.rta[i];
+                let new = clamp_sym(b.lt[i] - b.tangent_mass[i] * vt, b.friction[i] * b.ln[i]);
+                let d = new - b.lt[i];
+                b.lt[i] = new;
+                let (px, py) = (d * -b.ny[i], d * b.nx[i]);
+                avx[i] -= b.ma[i] * px;
+                avy[i] -= b.ma[i] * py;
+                aw[i] -= b.ia[i] * (d * b.rta[i]);
+                bvx[i] += b.mb[i] * px;
+                bvy[i] += b.mb[i] * py;
+                bw[i] += b.ib[i] * (d * b.rtb[i]);
+                lanes.max[i] = lanes.max[i].max(d.abs());
+                lanes.sum_sq[i] += d * d;
+                if CONTACT {
+                    t_pos[i] = d.max(0.0);
+                }
+            }
+            // Normal rows: `normal_velocity`, projection, then `apply_normal`.
+            for i in 0..$width {
+                let vn = (bvx[i] - avx[i]) * b.nx[i]
+                    + (bvy[i] - avy[i]) * b.ny[i]
+                    + bw[i] * b.rnb[i]
+                    - aw[i] * b.rna[i];
+                let new = non_negative(b.ln[i] - b.normal_mass[i] * (vn - b.bias[i]));
+                let d = new - b.ln[i];
+                b.ln[i] = new;
+                let (px, py) = (d * b.nx[i], d * b.ny[i]);
+                avx[i] -= b.ma[i] * px;
+                avy[i] -= b.ma[i] * py;
+                aw[i] -= b.ia[i] * (d * b.rna[i]);
+                bvx[i] += b.mb[i] * px;
+                bvy[i] += b.mb[i] * py;
+                bw[i] += b.ib[i] * (d * b.rnb[i]);
+                lanes.max[i] = lanes.max[i].max(d.abs());
+                lanes.sum_sq[i] += d * d;
+                if CONTACT {
+                    lanes.contact_sq[i] = lanes.contact_sq[i].max(d * d + t_pos[i] * t_pos[i]);
+                }
+            }
+            // Movable bodies back; immovable and padding lanes into the sink (the batch's
+            // `wa`, `wb`).
+            for i in 0..$width {
+                vel.set(
+                    b.wa[i],
+                    $vel {
+                        vx: avx[i],
+                        vy: avy[i],
+                        w: aw[i],
+                    },
+                );
+                vel.set(
+                    b.wb[i],
+                    $vel {
+                        vx: bvx[i],
+                        vy: bvy[i],
+                        w: bw[i],
+                    },
+                );
+            }
         }
-    }
-    // Normal rows: `normal_velocity`, projection, then `apply_normal`.
-    for i in 0..LANES {
-        let vn = (bvx[i] - avx[i]) * b.nx[i] + (bvy[i] - avy[i]) * b.ny[i] + bw[i] * b.rnb[i]
-            - aw[i] * b.rna[i];
-        let new = non_negative(b.ln[i] - b.normal_mass[i] * (vn - b.bias[i]));
-        let d = new - b.ln[i];
-        b.ln[i] = new;
-        let (px, py) = (d * b.nx[i], d * b.ny[i]);
-        avx[i] -= b.ma[i] * px;
-        avy[i] -= b.ma[i] * py;
-        aw[i] -= b.ia[i] * (d * b.rna[i]);
-        bvx[i] += b.mb[i] * px;
-        bvy[i] += b.mb[i] * py;
-        bw[i] += b.ib[i] * (d * b.rnb[i]);
-        lanes.max[i] = lanes.max[i].max(d.abs());
-        lanes.sum_sq[i] += d * d;
-        if CONTACT {
-            lanes.contact_sq[i] = lanes.contact_sq[i].max(d * d + t_pos[i] * t_pos[i]);
-        }
-    }
-    // Movable bodies back; immovable and padding lanes into the sink ([`Batch::wa`]).
-    for i in 0..LANES {
-        vel.set(
-            b.wa[i],
-            Vel {
-                vx: avx[i],
-                vy: avy[i],
-                w: aw[i],
-            },
-        );
-        vel.set(
-            b.wb[i],
-            Vel {
-                vx: bvx[i],
-                vy: bvy[i],
-                w: bw[i],
-            },
-        );
-    }
+    };
 }
+pub(super) use portable_batch;
+
+portable_batch!(
+    /// [`LANES`] single-point manifolds of one colour: gather the body velocities, run the
+    /// friction row and the normal row of every lane with exactly the arithmetic of
+    /// [`sweep_manifold`] (so each lane's result is bit-identical to it), scatter the movable
+    /// bodies back. The lanes' bodies are distinct (one colour), except immovable ones, which
+    /// are read but never written (their lanes store into the sink slot instead).
+    pub(crate) fn sweep_batch(Real, LANES, Batch, Vel, LaneSweep)
+);
 
 /// Whether a body with these inverse masses can move.
 #[inline(always)]
@@ -173,12 +199,13 @@ pub(super) fn store<V: Velocities + ?Sized>(vel: &mut V, m: &Manifold, va: Vel, 
 }
 
 /// Body velocities as a sweep reads and writes them: a plain slice on one thread, shared
-/// atomic cells when threads split a colour ([`crate::velocity::chunked`]).
-pub(crate) trait Velocities {
+/// atomic cells when threads split a colour ([`crate::velocity::chunked`]); `T` is the
+/// velocity of one body (the `f32` sweep's own type in [`super::single`]).
+pub(crate) trait Velocities<T = Vel> {
     /// Velocity of body `i`.
-    fn get(&self, i: u32) -> Vel;
+    fn get(&self, i: u32) -> T;
     /// Sets the velocity of body `i`.
-    fn set(&mut self, i: u32, v: Vel);
+    fn set(&mut self, i: u32, v: T);
 }
 
 impl Velocities for [Vel] {
