@@ -110,7 +110,7 @@ fn register_sor(registry: &mut Registry) {
         "sor",
         "carried impulses refined by over-relaxed Gauss-Seidel sweeps (PGS on effective masses scaled by omega); \
          omega=1.7, sweeps=300, tolerance=1e-4 (tuned on seeds 100–109), pairs=1 (two-point manifolds' factor; above 1 they are split into over-relaxed point rows), budget_omega=2 \
-         (largest factor under a pass budget), start=builtin (a registered provider's name: \
+         (largest factor under a pass budget), max_points=none (larger islands get the start unswept), start=builtin (a registered provider's name: \
          the start the sweeps refine)",
         |p, r| {
             let d = RelaxedConfig::default();
@@ -120,6 +120,8 @@ fn register_sor(registry: &mut Registry) {
                 tolerance: p.f64("tolerance", d.tolerance)?,
                 pairs: p.f64("pairs", d.pairs)?,
                 budget_omega: p.f64("budget_omega", d.budget_omega)?,
+                max_points: usize::try_from(p.u64("max_points", d.max_points as u64)?)
+                    .unwrap_or(usize::MAX),
             };
             let provider = RelaxedWarmStart::new(config)?;
             Ok(Box::new(match p.string("start") {

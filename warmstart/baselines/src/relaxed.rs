@@ -53,6 +53,10 @@ pub struct RelaxedConfig {
     /// Largest factor under a pass budget, in [1, 2] (default 2: no cap). With few sweeps a
     /// large ω overshoots and no sweep is left to settle it.
     pub budget_omega: Real,
+    /// Islands with more contact points than this get the start without sweeps (default
+    /// `usize::MAX`: every island is swept). On a pile of a thousand bodies and more the
+    /// sweeps do not bring the large island under the tolerance and cost more than they save.
+    pub max_points: usize,
 }
 
 impl Default for RelaxedConfig {
@@ -63,6 +67,7 @@ impl Default for RelaxedConfig {
             tolerance: 1e-4,
             pairs: 1.0,
             budget_omega: 2.0,
+            max_points: usize::MAX,
         }
     }
 }
@@ -135,6 +140,8 @@ pub struct RelaxedWarmStart {
     current: Option<(u64, u32)>,
     /// Islands whose sweeps diverged and were dropped.
     dropped: u64,
+    /// Islands above [`RelaxedConfig::max_points`], given the start unswept.
+    gated: u64,
     /// Passes of the last island: the start's (when it sweeps) and the sweeps.
     last_passes: u32,
 }
@@ -187,6 +194,7 @@ impl RelaxedWarmStart {
             steps: 0,
             current: None,
             dropped: 0,
+            gated: 0,
             last_passes: 0,
         })
     }
@@ -267,9 +275,13 @@ impl WarmStart for RelaxedWarmStart {
         if out.is_empty() {
             return Ok(());
         }
+        let problem = ctx.problem;
+        if problem.len() > self.config.max_points {
+            self.gated += 1;
+            return Ok(());
+        }
         self.first.clear();
         self.first.extend_from_slice(out);
-        let problem = ctx.problem;
         if let Some(policy) = &mut self.relaxation {
             policy.omegas(ctx, &mut self.omegas)?;
             if self.omegas.len() != problem.len() {
@@ -332,7 +344,7 @@ impl WarmStart for RelaxedWarmStart {
 
     fn reset(&mut self) {
         (self.sweeps, self.islands, self.step_max_sum, self.steps) = (0, 0, 0, 0);
-        self.dropped = 0;
+        (self.dropped, self.gated) = (0, 0);
         self.current = None;
         if let Some(start) = &mut self.start {
             start.reset();
@@ -342,8 +354,8 @@ impl WarmStart for RelaxedWarmStart {
     /// `mean_sweeps` per island, `mean_sweeps_slowest_island` (the mean over steps of the
     /// largest island count of a step — the provider's sweeps beside the world's iterations,
     /// which the comparison counts on a step's slowest island, so that the total work of a
-    /// step is both) and `dropped` (islands whose diverging sweeps were replaced by the
-    /// carried impulses).
+    /// step is both), `dropped` (islands whose diverging sweeps were replaced by the
+    /// carried impulses) and `gated` (islands above [`RelaxedConfig::max_points`], not swept).
     fn diagnostics(&self) -> Vec<(String, Real)> {
         let (mut sum, mut steps) = (self.step_max_sum, self.steps);
         if let Some((_, max)) = self.current {
@@ -355,6 +367,7 @@ impl WarmStart for RelaxedWarmStart {
             ("mean_sweeps".into(), mean(self.sweeps, self.islands)),
             ("mean_sweeps_slowest_island".into(), mean(sum, steps)),
             ("dropped".into(), self.dropped as Real),
+            ("gated".into(), self.gated as Real),
         ]
     }
 

@@ -416,6 +416,7 @@ fn over_relaxed_sweeps_cut_the_world_iterations_and_the_total() {
         tolerance: 0.0,
         pairs: 1.0,
         budget_omega: 2.0,
+        max_points: usize::MAX,
     };
     let start = start_of(
         &mut RelaxedWarmStart::new(plain).unwrap(),
@@ -443,6 +444,7 @@ fn over_relaxed_sweeps_cut_the_world_iterations_and_the_total() {
             tolerance,
             pairs,
             budget_omega: 2.0,
+            max_points: usize::MAX,
         };
         assert!(RelaxedWarmStart::new(config).is_err(), "{config:?}");
     }
@@ -485,6 +487,7 @@ fn sor_refines_the_start_of_another_provider() {
         tolerance: 0.0,
         pairs: 1.0,
         budget_omega: 2.0,
+        max_points: usize::MAX,
     };
     let mut from_zeros = RelaxedWarmStart::new(plain)
         .unwrap()
@@ -720,4 +723,34 @@ fn coarse_layers_carry_a_column_its_missing_load_in_one_correction() {
     ] {
         assert!(CoarseWarmStart::new(config).is_err(), "{config:?}");
     }
+}
+
+#[test]
+fn sor_gives_islands_above_max_points_the_start_unswept() {
+    // An 8-point column: with room for 8 points the sweeps run; with room for 7 the island
+    // gets the carried impulses as they are, no pass spent, and the gate is counted.
+    let (problem, _, carried) = short_of_load(8);
+    let with = |max_points| {
+        let config = RelaxedConfig {
+            max_points,
+            ..RelaxedConfig::default()
+        };
+        let mut sor = RelaxedWarmStart::new(config).unwrap();
+        let start = start_of(&mut sor, &problem, &carried, 1);
+        let gated = sor
+            .diagnostics()
+            .into_iter()
+            .find(|(k, _)| k == "gated")
+            .map(|(_, v)| v);
+        (start, sor.passes_spent(), gated)
+    };
+    let (swept, passes, gated) = with(8);
+    assert!(passes > 0, "no sweep ran");
+    assert_eq!(gated, Some(0.0));
+    let carried_start: Vec<Impulse> = carried.iter().map(|c| c.unwrap()).collect();
+    assert_ne!(swept, carried_start, "the sweeps changed nothing");
+    let (kept, passes, gated) = with(7);
+    assert_eq!(passes, 0);
+    assert_eq!(gated, Some(1.0));
+    assert_eq!(kept, carried_start);
 }

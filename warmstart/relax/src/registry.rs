@@ -31,7 +31,7 @@ pub const LEARNED_BUDGET_OMEGA: f64 = 1.5;
 /// Registers `learned-sor`: the shipped policy, or `path=policy.json`; `name=` renames it,
 /// `sweeps=` (300) and `tolerance=` (1e-4) bound its sweeps as `sor`'s; `pairs=`
 /// ([`LEARNED_PAIRS`]) relaxes two-point manifolds and `budget_omega=` ([`LEARNED_BUDGET_OMEGA`])
-/// caps the factors under a pass budget.
+/// caps the factors under a pass budget; `max_points=` leaves larger islands unswept.
 pub fn register(registry: &mut Registry) {
     registry.register_provider(
         "learned-sor",
@@ -39,7 +39,7 @@ pub fn register(registry: &mut Registry) {
             "sor whose per-contact relaxation factor is picked by a learned policy (six features, fitted on seeds 0-99; \
              models/learned-sor.json); path=policy.json, name=learned-sor, sweeps=300, tolerance=1e-4, pairs=1.3 (two-point manifolds split into rows relaxed by it without a pass budget; \
              1 keeps them blocks), \
-             budget_omega=1.5 (largest factor under a pass budget)",
+             budget_omega=1.5 (largest factor under a pass budget), max_points=none (larger islands get the carried impulses unswept)",
         )
         .learned(),
         |p, _| {
@@ -60,6 +60,8 @@ pub fn register(registry: &mut Registry) {
                 tolerance: p.f64("tolerance", d.tolerance)?,
                 pairs: p.f64("pairs", LEARNED_PAIRS)?,
                 budget_omega: p.f64("budget_omega", LEARNED_BUDGET_OMEGA)?,
+                max_points: usize::try_from(p.u64("max_points", d.max_points as u64)?)
+                    .unwrap_or(usize::MAX),
                 ..d
             };
             Ok(Box::new(learned_sor(name, policy, config)?))
