@@ -39,18 +39,6 @@ struct Vel32 {
     w: f32,
 }
 
-impl Velocities<Vel32> for [Vel32] {
-    #[inline(always)]
-    fn get(&self, i: u32) -> Vel32 {
-        self[i as usize]
-    }
-
-    #[inline(always)]
-    fn set(&mut self, i: u32, v: Vel32) {
-        self[i as usize] = v;
-    }
-}
-
 impl Vel32 {
     fn of(v: &Vel) -> Self {
         Self {

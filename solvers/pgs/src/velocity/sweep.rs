@@ -79,7 +79,7 @@ pub(crate) fn sweep_manifold<const CONTACT: bool, V: Velocities + ?Sized>(
 /// the module that invokes it, `sweep_batch` with the given attributes and visibility over the
 /// given scalar type, lane count, batch, velocity and per-lane measures types (each lane's
 /// operations in the same order whatever the width); it calls that module's `clamp_sym` and
-/// `non_negative`.
+/// `non_negative` and reads and writes the velocities through [`Velocities`] (in scope there).
 macro_rules! portable_batch {
     (
         $(#[$attr:meta])*
@@ -208,14 +208,14 @@ pub(crate) trait Velocities<T = Vel> {
     fn set(&mut self, i: u32, v: T);
 }
 
-impl Velocities for [Vel] {
+impl<T: Copy> Velocities<T> for [T] {
     #[inline(always)]
-    fn get(&self, i: u32) -> Vel {
+    fn get(&self, i: u32) -> T {
         self[i as usize]
     }
 
     #[inline(always)]
-    fn set(&mut self, i: u32, v: Vel) {
+    fn set(&mut self, i: u32, v: T) {
         self[i as usize] = v;
     }
 }
