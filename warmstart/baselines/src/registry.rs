@@ -104,6 +104,39 @@ fn register_oracles(registry: &mut Registry) {
     );
 }
 
+/// `anderson` and `coarse`: PGS sweeps accelerated by mixing or by a coarse level.
+fn register_accelerated(registry: &mut Registry) {
+    registry.register_provider(
+        "anderson",
+        "builtin refined by Anderson-accelerated PGS sweeps; window=5, sweeps=4 (per map \
+         evaluation), rounds=40, tolerance=1e-4",
+        |p, _| {
+            let d = AndersonConfig::default();
+            let config = AndersonConfig {
+                window: u32_param(p, "window", d.window)?,
+                sweeps: u32_param(p, "sweeps", d.sweeps)?,
+                rounds: u32_param(p, "rounds", d.rounds)?,
+                tolerance: p.f64("tolerance", d.tolerance)?,
+            };
+            Ok(Box::new(AndersonWarmStart::new(config)?))
+        },
+    );
+    registry.register_provider(
+        "coarse",
+        "builtin corrected on a coarse level of horizontal layers between PGS sweeps; \
+         layer=1 (m), sweeps=4 (before and after each correction), rounds=2",
+        |p, _| {
+            let d = CoarseConfig::default();
+            let config = CoarseConfig {
+                layer: p.f64("layer", d.layer)?,
+                sweeps: u32_param(p, "sweeps", d.sweeps)?,
+                rounds: u32_param(p, "rounds", d.rounds)?,
+            };
+            Ok(Box::new(CoarseWarmStart::new(config)?))
+        },
+    );
+}
+
 /// `sor`: over-relaxed sweeps from the carried impulses (or another provider's start).
 fn register_sor(registry: &mut Registry) {
     registry.register_provider(
@@ -136,6 +169,7 @@ fn register_sor(registry: &mut Registry) {
 /// `best` (and `sor`, [`register_sor`]).
 fn register_contenders(registry: &mut Registry) {
     register_sor(registry);
+    register_accelerated(registry);
     registry.register_provider(
         "tail",
         "builtin plus the extrapolated rest of last step's solve (Aitken along the slow mode); \
@@ -156,35 +190,6 @@ fn register_contenders(registry: &mut Registry) {
         "extrapolate",
         "carried impulses continued linearly in time, λ_t + alpha (λ_t − λ_{t−1}); alpha=0.25 (tuned on seeds 100–109)",
         |p, _| Ok(Box::new(ExtrapolatedWarmStart::new(p.f64("alpha", 0.25)?)?)),
-    );
-    registry.register_provider(
-        "anderson",
-        "builtin refined by Anderson-accelerated PGS sweeps; window=5, sweeps=4 (per map \
-         evaluation), rounds=40, tolerance=1e-4",
-        |p, _| {
-            let d = AndersonConfig::default();
-            let config = AndersonConfig {
-                window: u32_param(p, "window", d.window)?,
-                sweeps: u32_param(p, "sweeps", d.sweeps)?,
-                rounds: u32_param(p, "rounds", d.rounds)?,
-                tolerance: p.f64("tolerance", d.tolerance)?,
-            };
-            Ok(Box::new(AndersonWarmStart::new(config)?))
-        },
-    );
-    registry.register_provider(
-        "coarse",
-        "builtin corrected on a coarse level of horizontal layers between PGS sweeps; \
-         layer=1 (m), sweeps=4 (before and after each correction), rounds=2",
-        |p, _| {
-            let d = CoarseConfig::default();
-            let config = CoarseConfig {
-                layer: p.f64("layer", d.layer)?,
-                sweeps: u32_param(p, "sweeps", d.sweeps)?,
-                rounds: u32_param(p, "rounds", d.rounds)?,
-            };
-            Ok(Box::new(CoarseWarmStart::new(config)?))
-        },
     );
     registry.register_provider(
         "krylov",
