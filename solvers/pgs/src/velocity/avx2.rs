@@ -21,8 +21,8 @@ use super::{Batch, Island, LANES, LaneSweep, Vel};
 /// batch in flight (`InFlight`), the arithmetic (`Ops`, one method per operation over the
 /// given `_mm256_*` intrinsics), the rows of a batch (`start`, `friction`, `normal`,
 /// `finish`), `sweep_one` and `sweep_colour`: the batches of one colour in order, two at a
-/// time. The module supplies `gather` (the lanes' loads written out, one index expression a
-/// lane).
+/// time. The module supplies `gather` (the bodies' velocities at a batch's indices as three
+/// lane registers) and `scatter` (the reverse, in lane order).
 ///
 /// The arguments: `sweep_colour`'s visibility; the register type, the scalar type, the lane
 /// count, the batch, velocity and per-lane measures types; then the nine intrinsics (`set1`,
@@ -41,20 +41,6 @@ macro_rules! avx2_kernel {
         [$set1:ident, $setzero:ident, $add:ident, $sub:ident, $mul:ident, $max:ident, $min:ident,
          $xor:ident, $andnot:ident $(,)?] $(,)?
     ) => {
-        /// [`gather`] reversed: three registers back to the bodies at `index`, in lane order.
-        #[inline(always)]
-        fn scatter(vel: &mut [$vel], index: &[u32; $width], [vx, vy, w]: [$reg; 3]) {
-            let (vx, vy, w): ([$real; $width], [$real; $width], [$real; $width]) =
-                (pulp::cast(vx), pulp::cast(vy), pulp::cast(w));
-            for (lane, &i) in index.iter().enumerate() {
-                vel[i as usize] = $vel {
-                    vx: vx[lane],
-                    vy: vy[lane],
-                    w: w[lane],
-                };
-            }
-        }
-
         /// The lane registers of one batch in flight: the gathered velocities of its bodies
         /// and the changes of its two rows.
         struct InFlight {
@@ -125,8 +111,8 @@ macro_rules! avx2_kernel {
         #[inline(always)]
         fn start(o: Ops, b: &$batch, vel: &[$vel]) -> InFlight {
             InFlight {
-                a: gather(vel, &b.a),
-                b: gather(vel, &b.b),
+                a: gather(o.simd, vel, &b.a),
+                b: gather(o.simd, vel, &b.b),
                 dt: o.zero,
                 dn: o.zero,
             }
@@ -214,8 +200,8 @@ macro_rules! avx2_kernel {
             vel: &mut [$vel],
             lanes: &mut $lanes,
         ) {
-            scatter(vel, &b.wa, s.a);
-            scatter(vel, &b.wb, s.b);
+            scatter(o.simd, vel, &b.wa, s.a);
+            scatter(o.simd, vel, &b.wb, s.b);
             let (mut max, mut sum_sq) = (ld(&lanes.max), ld(&lanes.sum_sq));
             for d in [s.dt, s.dn] {
                 max = o.gt(o.abs(d), max);
@@ -276,9 +262,19 @@ macro_rules! avx2_kernel {
 }
 pub(super) use avx2_kernel;
 
+/// [`gather`] reversed: three registers back to the bodies at `index`, in lane order.
+#[inline(always)]
+fn scatter(_simd: V3, vel: &mut [Vel], index: &[u32; LANES], [vx, vy, w]: [__m256d; 3]) {
+    let (vx, vy, w): ([f64; LANES], [f64; LANES], [f64; LANES]) =
+        (pulp::cast(vx), pulp::cast(vy), pulp::cast(w));
+    for (lane, &i) in index.iter().enumerate() {
+        vel[i as usize] = Vel::new(vx[lane], vy[lane], w[lane]);
+    }
+}
+
 /// The velocities of four bodies as three registers `(vx₀..₃)`, `(vy₀..₃)`, `(ω₀..₃)`.
 #[inline(always)]
-fn gather(vel: &[Vel], index: &[u32; LANES]) -> [__m256d; 3] {
+fn gather(_simd: V3, vel: &[Vel], index: &[u32; LANES]) -> [__m256d; 3] {
     // No closures in here: they are compiled outside the AVX2 context, and the intrinsics
     // in them become calls.
     let (v0, v1, v2, v3) = (

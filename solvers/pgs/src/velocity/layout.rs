@@ -185,3 +185,11 @@ pub(crate) struct Vel {
     pub(crate) vy: Real,
     pub(crate) w: Real,
 }
+
+impl Vel {
+    /// The velocity `(vx, vy, ω)`.
+    #[inline(always)]
+    pub(crate) const fn new(vx: Real, vy: Real, w: Real) -> Self {
+        Self { vx, vy, w }
+    }
+}

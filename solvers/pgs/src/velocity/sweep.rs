@@ -149,22 +149,8 @@ macro_rules! portable_batch {
             // Movable bodies back; immovable and padding lanes into the sink (the batch's
             // `wa`, `wb`).
             for i in 0..$width {
-                vel.set(
-                    b.wa[i],
-                    $vel {
-                        vx: avx[i],
-                        vy: avy[i],
-                        w: aw[i],
-                    },
-                );
-                vel.set(
-                    b.wb[i],
-                    $vel {
-                        vx: bvx[i],
-                        vy: bvy[i],
-                        w: bw[i],
-                    },
-                );
+                vel.set(b.wa[i], $vel::new(avx[i], avy[i], aw[i]));
+                vel.set(b.wb[i], $vel::new(bvx[i], bvy[i], bw[i]));
             }
         }
     };
