@@ -28,7 +28,8 @@ fn u32_param(p: &mut Params<'_>, key: &'static str, default: u32) -> Result<u32,
 /// Registers `psor` (`omega=1`, `assembly=auto|dense|sparse`, `dense_threshold=128`),
 /// `newton` (`reg=1e-10`, `assembly`, `dense_threshold`) and `pgs-rescue`
 /// (`trigger=capped|stalled`, `window=100`, `factor=2`, `start=best|iterate|zeros`,
-/// `above=5`, `newton_iterations=300`, `newton_chunk=300`, `newton_progress=0.5`, `newton_tolerance=1e-6`); defaults are
+/// `above=5`, `newton_iterations=20`, `newton_chunk=300`, `newton_progress=0.5`,
+/// `newton_tolerance=1e-6`, `escalate=300`, `escalate_above=10`); defaults are
 /// [`PsorSettings::default`], [`NewtonSettings::default`] and [`RescueSettings::default`].
 pub fn register(registry: &mut Registry) {
     register_psor(registry);
@@ -103,9 +104,12 @@ fn register_pgs_rescue(registry: &mut Registry) {
          capped), window=100 (iterations; a cap below two windows is a budget, never rescued), factor=2 (> 1), above=5 (only islands whose natural \
          residual at the cap is above this multiple of the stop tolerance), start=best|iterate|zeros (Newton \
          from PGS's impulses, from zeros, or from zeros too when the first does not converge; \
-         default best), newton_iterations=300 (per start), newton_chunk=300 and newton_progress=0.5 \
+         default best), newton_iterations=20 (per start), newton_chunk=300 and newton_progress=0.5 \
          (Newton goes on after a chunk only if the natural residual fell below progress × \
-         its value after the chunk before, after the first × PGS's; 300: one solve per start), newton_tolerance=1e-6 (N·s)",
+         its value after the chunk before, after the first × PGS's; at least newton_iterations: \
+         one solve per start), newton_tolerance=1e-6 (N·s), escalate=300 (when no start converged \
+         and the best result is still above escalate_above=10 × the stop tolerance, the starts \
+         again with this cap; 0: none)",
         |p| {
             let d = RescueSettings::default();
             let trigger = match p.choice("trigger", &["capped", "stalled"])? {
@@ -122,6 +126,7 @@ fn register_pgs_rescue(registry: &mut Registry) {
             let window = u32_param(p, "window", d.window)?;
             let newton_iterations = u32_param(p, "newton_iterations", d.newton_iterations)?;
             let newton_chunk = u32_param(p, "newton_chunk", d.newton_chunk)?;
+            let escalate = u32_param(p, "escalate", d.escalate)?;
             let settings = RescueSettings {
                 trigger,
                 start,
@@ -132,6 +137,8 @@ fn register_pgs_rescue(registry: &mut Registry) {
                 newton_chunk,
                 newton_progress: p.f64("newton_progress", d.newton_progress)?,
                 newton_tolerance: p.f64("newton_tolerance", d.newton_tolerance)?,
+                escalate,
+                escalate_above: p.f64("escalate_above", d.escalate_above)?,
                 ..d
             };
             if let Err(e) = settings.validate() {

@@ -57,12 +57,14 @@ pub struct RescueSettings {
     pub above: Real,
     /// Where Newton starts (default [`RescueStart::Best`]).
     pub start: RescueStart,
-    /// Iteration cap of each Newton solve (default 300, ≥ 1).
+    /// Iteration cap of each Newton solve (default 20, ≥ 1). Where semismooth Newton
+    /// converges on a pile's island it does so within a few tens of iterations; past that it
+    /// mostly wanders, at the price of a factorisation an iteration.
     pub newton_iterations: u32,
     /// Newton runs in chunks of this many iterations (≥ 1); after a chunk that did not
     /// converge it goes on only when the natural residual fell below
     /// [`Self::newton_progress`] × its value after the chunk before (after the first chunk:
-    /// × PGS's). Default 300 (= [`Self::newton_iterations`]: one solve per start). Short
+    /// × PGS's). Default 300 (not below [`Self::newton_iterations`]: one solve per start). Short
     /// chunks (10) stop hopeless solves early on large islands (the 20-row pyramid), but
     /// also stop some that would have converged on the piles (Newton's natural residual does
     /// not fall monotonically) and each chunk restarts Newton's regularisation.
@@ -73,6 +75,15 @@ pub struct RescueSettings {
     /// Stop tolerance of the Newton solve on `max |Δλ|` and on the natural residual (N·s;
     /// default 1e-6, ≥ 0).
     pub newton_tolerance: Real,
+    /// Iteration cap of a second round of the starts (default 300; 0 = none), run only when no
+    /// start converged and the best result's natural residual is still above
+    /// [`Self::escalate_above`] × the stop tolerance: the rare island the short solves leave
+    /// far from a solution gets long ones, the others do not pay for them.
+    pub escalate: u32,
+    /// Multiple of the stop tolerance above which the best result of the starts gets the
+    /// longer round [`Self::escalate`] (default 10, ≥ 0: with the comparison's 1e-4, a natural
+    /// residual above 1e-3 N·s).
+    pub escalate_above: Real,
 }
 
 impl Default for RescueSettings {
@@ -85,10 +96,12 @@ impl Default for RescueSettings {
             factor: 2.0,
             above: 5.0,
             start: RescueStart::Best,
-            newton_iterations: 300,
+            newton_iterations: 20,
             newton_chunk: 300,
             newton_progress: 0.5,
             newton_tolerance: 1e-6,
+            escalate: 300,
+            escalate_above: 10.0,
         }
     }
 }
@@ -150,6 +163,12 @@ impl RescueSettings {
             self.newton_tolerance.is_finite() && self.newton_tolerance >= 0.0,
             "must be finite and >= 0",
         )?;
+        check(
+            "escalate_above",
+            self.escalate_above,
+            self.escalate_above.is_finite() && self.escalate_above >= 0.0,
+            "must be finite and >= 0",
+        )?;
         self.newton.validate()
     }
 }
@@ -173,6 +192,9 @@ pub struct RescueStats {
     pub rescued: u64,
     /// Islands handed to Newton that kept PGS's result (Newton no better, or it failed).
     pub fallbacks: u64,
+    /// Islands whose starts left them above [`RescueSettings::escalate_above`] × the stop
+    /// tolerance and that got the longer round of Newton solves.
+    pub escalated: u64,
     /// Newton iterations, in all.
     pub newton_iterations: u64,
     /// Wall time of the Newton solves (s).
@@ -323,23 +345,20 @@ impl PgsRescueSolver {
         report.seconds += n.seconds;
     }
 
-    /// Finishes an island PGS left at its cap: Newton from the start [`RescueStart`] names,
-    /// the result kept when its natural residual is below PGS's.
-    fn rescue(
+    /// Newton from each start [`RescueStart`] names, at most `cap` iterations each (in chunks
+    /// of [`RescueSettings::newton_chunk`]), until one converges; a result replaces the
+    /// island's impulses and velocities when its natural residual is below `best` (which it
+    /// lowers). Returns whether a start converged.
+    fn run_starts(
         &mut self,
         problem: &ContactProblem,
+        cap: u32,
+        best: &mut Real,
         impulses: &mut [Impulse],
         velocities: &mut [Velocity],
         report: &mut SolveReport,
-    ) {
-        self.stats.attempted += 1;
+    ) -> bool {
         let pgs_residual = report.natural_residual;
-        let mut best = pgs_residual;
-        let mut kept = false;
-        self.saved_impulses.clear();
-        self.saved_impulses.extend_from_slice(impulses);
-        self.saved_velocities.clear();
-        self.saved_velocities.extend_from_slice(velocities);
         let starts: &[bool] = match self.settings.start {
             RescueStart::Iterate => &[false],
             RescueStart::Zeros => &[true],
@@ -356,7 +375,7 @@ impl PgsRescueSolver {
             self.trial_velocities.clear();
             self.trial_velocities
                 .resize(self.saved_velocities.len(), Velocity::default());
-            let mut left = self.settings.newton_iterations;
+            let mut left = cap;
             let mut last = pgs_residual;
             let mut residual = None;
             while left > 0 {
@@ -375,20 +394,51 @@ impl PgsRescueSolver {
                 }
             }
             if let Some(r) = residual
-                && r < best
+                && r < *best
             {
-                best = r;
-                kept = true;
+                *best = r;
                 impulses.copy_from_slice(&self.trial_impulses);
                 velocities.copy_from_slice(&self.trial_velocities);
                 report.converged = self.newton_report.converged;
             }
             if self.newton_report.converged {
-                break;
+                return true;
             }
         }
+        false
+    }
+
+    /// Finishes an island PGS left at its cap: Newton from the starts [`RescueStart`] names,
+    /// a result kept when its natural residual is below PGS's; when none converged and the
+    /// best result is still above [`RescueSettings::escalate_above`] × `tolerance`, the same
+    /// starts again with the longer cap [`RescueSettings::escalate`].
+    fn rescue(
+        &mut self,
+        problem: &ContactProblem,
+        tolerance: Real,
+        impulses: &mut [Impulse],
+        velocities: &mut [Velocity],
+        report: &mut SolveReport,
+    ) {
+        self.stats.attempted += 1;
+        let pgs_residual = report.natural_residual;
+        let mut best = pgs_residual;
+        self.saved_impulses.clear();
+        self.saved_impulses.extend_from_slice(impulses);
+        self.saved_velocities.clear();
+        self.saved_velocities.extend_from_slice(velocities);
+        let cap = self.settings.newton_iterations;
+        let converged = self.run_starts(problem, cap, &mut best, impulses, velocities, report);
+        if !converged
+            && self.settings.escalate > 0
+            && best > self.settings.escalate_above * tolerance
+        {
+            self.stats.escalated += 1;
+            let cap = self.settings.escalate;
+            self.run_starts(problem, cap, &mut best, impulses, velocities, report);
+        }
         report.natural_residual = best;
-        if kept {
+        if best < pgs_residual {
             self.stats.rescued += 1;
         } else {
             self.stats.fallbacks += 1;
@@ -410,7 +460,7 @@ impl PgsRescueSolver {
         self.pgs
             .solve(problem, settings, impulses, velocities, report)?;
         if self.wants_rescue(settings, report) {
-            self.rescue(problem, impulses, velocities, report);
+            self.rescue(problem, settings.tolerance, impulses, velocities, report);
         }
         Ok(())
     }
@@ -450,6 +500,7 @@ impl VelocitySolver for PgsRescueSolver {
             if island.result.is_ok() && self.wants_rescue(settings, island.report) {
                 self.rescue(
                     island.problem,
+                    settings.tolerance,
                     island.impulses,
                     island.velocities,
                     island.report,

@@ -203,6 +203,10 @@ fn bad_parameters_give_typed_errors() {
             start: RescueStart::Zeros,
             ..RescueSettings::default()
         },
+        RescueSettings {
+            escalate_above: Real::INFINITY,
+            ..RescueSettings::default()
+        },
     ];
     for (settings, name) in bad.iter().zip([
         "window",
@@ -212,6 +216,7 @@ fn bad_parameters_give_typed_errors() {
         "newton_chunk",
         "newton_progress",
         "newton_tolerance",
+        "escalate_above",
     ]) {
         match settings.validate() {
             Err(LcpError::InvalidSetting { name: n, .. }) => assert_eq!(n, name),
@@ -243,6 +248,7 @@ fn bad_parameters_give_typed_errors() {
         ("pgs-rescue:newton_iterations=0", "newton_iterations"),
         ("pgs-rescue:newton_tolerance=-1", "newton_tolerance"),
         ("pgs-rescue:newton_chunk=0", "newton_chunk"),
+        ("pgs-rescue:escalate_above=-1", "escalate_above"),
         ("pgs-rescue:newton_progress=0", "newton_progress"),
         ("pgs-rescue:start=middle", "start"),
         ("pgs-rescue:trigger=never", "trigger"),
@@ -253,4 +259,51 @@ fn bad_parameters_give_typed_errors() {
             Ok(_) => panic!("{spec} accepted"),
         }
     }
+}
+
+/// Starts too short to finish the cycling island (two Newton iterations each) leave it off a
+/// solution; the starts again with the longer cap finish it, but only when their best result
+/// is above the gate.
+#[test]
+fn an_island_the_short_starts_leave_above_the_gate_gets_the_longer_round() {
+    let (problem, start) = island(313, 149);
+    let tolerance = SolverSettings::default().tolerance;
+    let short = RescueSettings {
+        newton_iterations: 2,
+        ..RescueSettings::default()
+    };
+    let run = |settings: RescueSettings| {
+        let mut rescue = PgsRescueSolver::with_settings(settings);
+        let (_, _, report) = solve(&mut rescue, &problem, &start);
+        (report, rescue.stats())
+    };
+    let (alone, stats) = run(RescueSettings {
+        escalate: 0,
+        ..short
+    });
+    assert_eq!((stats.attempted, stats.escalated), (1, 0), "{stats:?}");
+    let left = alone.natural_residual;
+    assert!(
+        !alone.converged && left > 1e-5,
+        "two Newton iterations a start already end at {left:e}"
+    );
+    // The gate just below where the starts ended: the longer round runs and finishes it.
+    let (escalated, stats) = run(RescueSettings {
+        escalate_above: 0.5 * left / tolerance,
+        ..short
+    });
+    assert_eq!((stats.attempted, stats.escalated), (1, 1), "{stats:?}");
+    assert!(
+        escalated.converged && escalated.natural_residual < 1e-6,
+        "natural residual {:e} after the longer round",
+        escalated.natural_residual
+    );
+    assert!(escalated.iterations > alone.iterations);
+    // The gate above it: no longer round, the starts. result stays.
+    let (kept, stats) = run(RescueSettings {
+        escalate_above: 2.0 * left / tolerance,
+        ..short
+    });
+    assert_eq!(stats.escalated, 0, "{stats:?}");
+    assert_eq!(kept.natural_residual.to_bits(), left.to_bits());
 }
