@@ -11,10 +11,10 @@
 //!
 //! With sixteen registers the two batches in flight do not fit, and what does not fit is
 //! spilled to the stack: a store each, and the store port (on first-generation Zen one store
-//! a cycle, two for a 256-bit register) is where the sweep waits. So the second batch is gathered only after the
-//! first's friction row, the first is scattered before the second's normal row, and the
-//! normal row reloads the batch's fields rather than keeping the friction row's loads alive
-//! across the other batch (see `normal`). A body's `(vx, vy)` moves as one 128-bit load or
+//! a cycle, two for a 256-bit register) is where the sweep waits. So the second batch is
+//! gathered only after the first's friction row, the first is scattered before the second's
+//! normal row, and the normal row reloads the batch's fields rather than keeping the friction
+//! row's loads alive across the other batch (see `normal`). A body's `(vx, vy)` moves as one 128-bit load or
 //! store. Together: 0.83–0.94 × the time of a pass at 100 and 1 000 bodies in both
 //! precisions (`pgs_speed`, docs/PERFORMANCE.md).
 
