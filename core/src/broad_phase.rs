@@ -24,6 +24,15 @@ impl Aabb {
     }
 }
 
+/// What the pair tests of a cell read of one of its bodies.
+#[derive(Debug, Clone, Copy)]
+struct CellBody {
+    aabb: Aabb,
+    first: (i64, i64),
+    id: u32,
+    dynamic: bool,
+}
+
 /// Reusable broad-phase state: all buffers persist between steps.
 #[derive(Debug, Default, Clone)]
 pub struct BroadPhase {
@@ -33,12 +42,25 @@ pub struct BroadPhase {
     kinds: Vec<BodyKind>,
     extents: Vec<Real>,
     entries: Vec<(u64, u32)>,
+    /// Per body, the cell of its AABB's lower corner (`(x, y)` cell indices).
+    first: Vec<(i64, i64)>,
+    /// The bodies of the cell [`Self::cell_pairs`] is at (scratch).
+    cell: Vec<CellBody>,
     large: Vec<u32>,
     pairs: Vec<(u32, u32)>,
     /// Counting-sort scratch: bucket offsets and the sorted copy.
     counts: Vec<u32>,
     sorted_entries: Vec<(u64, u32)>,
     sorted_pairs: Vec<(u32, u32)>,
+}
+
+/// `x.floor() as i64` (saturating; NaN gives 0) without a call: x86-64's baseline has no
+/// rounding instruction, so `f64::floor` calls the C library, four times a body here.
+/// Truncation toward zero is one below the floor exactly for negative non-integers.
+#[inline(always)]
+fn floor_i64(x: Real) -> i64 {
+    let t = x as i64;
+    t.saturating_sub(i64::from((t as Real) > x))
 }
 
 #[inline]
@@ -68,7 +90,7 @@ impl BroadPhase {
         }
         let inv = 1.0 / self.cell_size();
         self.bin_bodies(inv);
-        self.cell_pairs(inv);
+        self.cell_pairs();
         self.large_pairs(bodies.len() as u32);
         self.sort_pairs(bodies.len());
         self.pairs.dedup();
@@ -105,17 +127,13 @@ impl BroadPhase {
     fn bin_bodies(&mut self, inv: Real) {
         self.entries.clear();
         self.large.clear();
+        self.first.clear();
         // Bounding box of the occupied cells, for the counting sort.
         let (mut cx0, mut cy0, mut cx1, mut cy1) = (i64::MAX, i64::MAX, i64::MIN, i64::MIN);
         for (i, a) in self.aabbs.iter().enumerate() {
-            let (x0, y0) = (
-                (a.min.x * inv).floor() as i64,
-                (a.min.y * inv).floor() as i64,
-            );
-            let (x1, y1) = (
-                (a.max.x * inv).floor() as i64,
-                (a.max.y * inv).floor() as i64,
-            );
+            let (x0, y0) = (floor_i64(a.min.x * inv), floor_i64(a.min.y * inv));
+            let (x1, y1) = (floor_i64(a.max.x * inv), floor_i64(a.max.y * inv));
+            self.first.push((x0, y0));
             if (x1 - x0 + 1) * (y1 - y0 + 1) > 16 {
                 self.large.push(i as u32);
                 continue;
@@ -131,10 +149,11 @@ impl BroadPhase {
     }
 
     /// Overlapping pairs sharing a cell, each reported once: in the cell holding the
-    /// overlap's lower corner.
-    fn cell_pairs(&mut self, inv: Real) {
-        let kinds = &self.kinds;
-        let dynamic_pair = |a: u32, b: u32| dynamic_pair(kinds, a, b);
+    /// overlap's lower corner. That cell is `(max(xa, xb), max(ya, yb))` of the two bodies'
+    /// [`first`](Self::first) cells: `⌊max(u, v) · inv⌋ = max(⌊u · inv⌋, ⌊v · inv⌋)` for
+    /// `inv > 0`, as a rounded product is monotone in `u`.
+    fn cell_pairs(&mut self) {
+        let (kinds, first) = (&self.kinds, &self.first);
         let mut start = 0;
         while start < self.entries.len() {
             let key = self.entries[start].0;
@@ -142,24 +161,33 @@ impl BroadPhase {
             while end < self.entries.len() && self.entries[end].0 == key {
                 end += 1;
             }
-            for i in start..end {
-                let a = self.entries[i].1;
-                for j in i + 1..end {
-                    let b = self.entries[j].1;
-                    if !dynamic_pair(a, b) {
-                        continue;
-                    }
-                    let (aa, bb) = (&self.aabbs[a as usize], &self.aabbs[b as usize]);
-                    if !aa.overlaps(bb) {
-                        continue;
-                    }
-                    let cx = (aa.min.x.max(bb.min.x) * inv).floor() as i64;
-                    let cy = (aa.min.y.max(bb.min.y) * inv).floor() as i64;
-                    if cell_key(cx, cy) == key {
-                        self.pairs.push((a.min(b), a.max(b)));
-                    }
+            // The cell's bodies gathered once (each is read by every pair of the cell).
+            self.cell.clear();
+            self.cell
+                .extend(self.entries[start..end].iter().map(|&(_, id)| CellBody {
+                    aabb: self.aabbs[id as usize],
+                    first: first[id as usize],
+                    id,
+                    dynamic: kinds[id as usize] == BodyKind::Dynamic,
+                }));
+            // Every candidate written, the count advanced by the test's outcome: the test is
+            // true for a quarter of the candidates or so, too often to predict.
+            let k = self.cell.len();
+            let mut n = self.pairs.len();
+            self.pairs.resize(n + k * (k - 1) / 2, (0, 0));
+            for (i, a) in self.cell.iter().enumerate() {
+                for b in &self.cell[i + 1..] {
+                    let hit = (a.dynamic | b.dynamic)
+                        & (a.aabb.min.x <= b.aabb.max.x)
+                        & (b.aabb.min.x <= a.aabb.max.x)
+                        & (a.aabb.min.y <= b.aabb.max.y)
+                        & (b.aabb.min.y <= a.aabb.max.y)
+                        & (cell_key(a.first.0.max(b.first.0), a.first.1.max(b.first.1)) == key);
+                    self.pairs[n] = (a.id.min(b.id), a.id.max(b.id));
+                    n += usize::from(hit);
                 }
             }
+            self.pairs.truncate(n);
             start = end;
         }
     }
@@ -322,6 +350,35 @@ mod tests {
             let pairs = bp.find_pairs(world.bodies(), 0.01).to_vec();
             assert!(pairs.len() > 500);
             assert_eq!(pairs, brute_force(&bp, world.bodies()));
+        }
+    }
+
+    #[test]
+    fn floor_without_a_call_is_the_library_floor() {
+        let mut xs = vec![
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            -1.0,
+            -1.0 - Real::EPSILON,
+            3.0,
+            2.999_999_999_999_999_6,
+            -2.999_999_999_999_999_6,
+            9.007_199_254_740_993e15,
+            -9.007_199_254_740_993e15,
+            9.3e18,
+            -9.3e18,
+            Real::INFINITY,
+            Real::NEG_INFINITY,
+            Real::NAN,
+            Real::MIN_POSITIVE,
+            -Real::MIN_POSITIVE,
+        ];
+        let mut rng = PortableRng::new(4);
+        xs.extend((0..10_000).map(|_| rng.uniform_range(-1e3, 1e3)));
+        for x in xs {
+            assert_eq!(floor_i64(x), x.floor() as i64, "x = {x:e}");
         }
     }
 }

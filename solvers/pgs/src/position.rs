@@ -3,7 +3,7 @@
 mod chunked;
 mod domains;
 
-use deepcontact_core::math::{Pose, Real, Vector, cross, rotate, rotate_sin_cos};
+use deepcontact_core::math::{Pose, Real, Vector, cross, rotate, rotate_sin_cos, sin_cos};
 use deepcontact_core::{
     CircleContact, ContactProblem, CoreError, PositionReport, PositionSettings, PositionSolver,
     ProblemBody,
@@ -149,7 +149,7 @@ impl Poses for CachedRotations<'_> {
     fn rotate(&mut self, i: usize, v: &Vector, angle: Real) -> Vector {
         let r = &mut self.rotations[i];
         if r.angle != angle.to_bits() {
-            (r.sin, r.cos) = angle.sin_cos();
+            (r.sin, r.cos) = sin_cos(angle);
             r.angle = angle.to_bits();
         }
         rotate_sin_cos(v, r.sin, r.cos)

@@ -9,7 +9,7 @@
 use deepcontact_core::math::Pose;
 use deepcontact_core::{PositionReport, PositionSettings};
 
-use crate::position::{PassMeasures, PosRow, correct_point};
+use crate::position::{CachedRotations, PassMeasures, PosRow, Rotation, correct_point};
 use crate::threads::domain_sweep::{Part, sweep_parts};
 use crate::threads::partition::Partition;
 
@@ -22,6 +22,8 @@ pub(crate) struct PositionDomains {
     rows: Vec<Vec<PosRow>>,
     /// Per domain, its bodies' poses.
     poses: Vec<Vec<Pose>>,
+    /// Per domain, its bodies' last rotations (one per pose).
+    rotations: Vec<Vec<Rotation>>,
     /// Per building thread, each island body's slot in the domain it builds (scratch).
     slots: Vec<Vec<u32>>,
 }
@@ -62,14 +64,20 @@ impl PositionDomains {
         poses: &mut [Pose],
         report: &mut PositionReport,
     ) {
+        self.rotations.resize_with(self.poses.len(), Vec::new);
         let mut parts: Vec<PositionPart<'_>> = self
             .rows
             .iter()
             .zip(self.poses.iter_mut())
-            .map(|(rows, poses)| PositionPart {
-                rows,
-                poses,
-                settings,
+            .zip(self.rotations.iter_mut())
+            .map(|((rows, poses), rotations)| {
+                rotations.clear();
+                rotations.resize(poses.len(), Rotation::default());
+                PositionPart {
+                    rows,
+                    poses: CachedRotations { poses, rotations },
+                    settings,
+                }
             })
             .collect();
         let stop =
@@ -95,10 +103,11 @@ impl PositionDomains {
     }
 }
 
-/// A domain of the pass: its rows and its poses.
+/// A domain of the pass: its rows and its poses (with their last rotations: a seam body's
+/// pose written by [`Part::set`] keeps the cache right, since it is keyed by the angle).
 struct PositionPart<'a> {
     rows: &'a [PosRow],
-    poses: &'a mut [Pose],
+    poses: CachedRotations<'a>,
     settings: &'a PositionSettings,
 }
 
@@ -107,19 +116,20 @@ impl Part for PositionPart<'_> {
 
     #[inline]
     fn get(&self, slot: u32) -> [f64; 3] {
-        let p = self.poses[slot as usize];
+        let p = self.poses.poses[slot as usize];
         [p.position.x, p.position.y, p.angle]
     }
 
     #[inline]
     fn set(&mut self, slot: u32, [x, y, angle]: [f64; 3]) {
-        self.poses[slot as usize] = Pose::new(deepcontact_core::math::Vector::new(x, y), angle);
+        self.poses.poses[slot as usize] =
+            Pose::new(deepcontact_core::math::Vector::new(x, y), angle);
     }
 
     fn sweep(&mut self) -> PassMeasures {
         let mut m = PassMeasures::default();
         for row in self.rows {
-            m.merge(&correct_point(row, self.settings, &mut *self.poses, true));
+            m.merge(&correct_point(row, self.settings, &mut self.poses, true));
         }
         m
     }
