@@ -17,9 +17,12 @@
 //! that band and of its neighbours only). With `domains = 0` it is swept colour by colour in
 //! fixed chunks instead. The position pass sweeps such islands in the same kind of domains
 //! ([`PgsPositionSettings::domains`], [`PgsPositionSettings::threads`]). Every part's measures
-//! are folded in a fixed order, so the result is bit-identical for any thread count. Smaller
-//! islands run on the
-//! calling thread; given all of a step's islands at once
+//! are folded in a fixed order, so the result is bit-identical for any thread count. The
+//! position pass of a smaller island of 256 points or more is shared in problem order
+//! (`position::ordered`): each thread corrects the points of a slab of bodies, and a body two
+//! threads move waits for the corrections that come before in that order, so the result is
+//! the one-thread loop's bits. Other islands run on the calling thread; given all of a step's
+//! islands at once
 //! ([`VelocitySolver::solve_many`](deepcontact_core::VelocitySolver::solve_many), as the world
 //! does), islands of up to 32 points are packed into the lanes of shared batches, up to eight
 //! islands a sweep, each with its own stop rule and to the bits of its own solve.

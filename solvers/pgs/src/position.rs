@@ -2,6 +2,7 @@
 
 mod chunked;
 mod domains;
+mod ordered;
 
 use deepcontact_core::math::{Pose, Real, Vector, cross, rotate, rotate_sin_cos, sin_cos};
 use deepcontact_core::{
@@ -12,9 +13,12 @@ use deepcontact_core::{
 /// Options of the position pass.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PgsPositionSettings {
-    /// Threads that share the pass of one island in the coloured plan (default 1; 0 counts
-    /// as 1; no more than the cores the process may use are started). The result is
-    /// bit-identical for every thread count.
+    /// Threads that share the pass of one island (default 1; 0 counts as 1; no more than the
+    /// cores the process may use are started): in the domain or coloured plan from
+    /// [`parallel_min_points`](Self::parallel_min_points), in problem order from 256 points
+    /// below it (the ordered plan: each thread corrects the points of a slab of bodies along x,
+    /// and a body two threads move waits for the corrections before it in problem order). The
+    /// result is bit-identical for every thread count.
     pub threads: usize,
     /// Islands with at least this many contact points run the domain plan or the coloured
     /// plan ([`domains`](Self::domains); default 2048), bodies renumbered in Z-order. Smaller
@@ -455,6 +459,11 @@ impl PositionSolver for PgsPositionSolver {
             self.rows.clear();
             self.rows
                 .extend((0..problem.points.len()).map(|k| PosRow::new(problem, k, settings)));
+            let threads = crate::threads::sync::effective_threads(self.settings.threads);
+            if threads > 1 && problem.points.len() >= ordered::ORDERED_MIN_POINTS {
+                ordered::solve(&self.rows, threads, settings, poses, &mut report);
+                return finite(poses, report);
+            }
             self.rotations.clear();
             self.rotations.resize(poses.len(), Rotation::default());
             let mut cached = CachedRotations {
@@ -471,17 +480,22 @@ impl PositionSolver for PgsPositionSolver {
                 }
             }
         }
-        if poses
-            .iter()
-            .any(|p| !(p.position.x.is_finite() && p.position.y.is_finite() && p.angle.is_finite()))
-        {
-            return Err(CoreError::Solver {
-                solver: "ngs".into(),
-                reason: "position pass produced a non-finite pose".into(),
-            });
-        }
-        Ok(report)
+        finite(poses, report)
     }
+}
+
+/// `report`, or an error if the pass left a non-finite pose.
+fn finite(poses: &[Pose], report: PositionReport) -> Result<PositionReport, CoreError> {
+    if poses
+        .iter()
+        .any(|p| !(p.position.x.is_finite() && p.position.y.is_finite() && p.angle.is_finite()))
+    {
+        return Err(CoreError::Solver {
+            solver: "ngs".into(),
+            reason: "position pass produced a non-finite pose".into(),
+        });
+    }
+    Ok(report)
 }
 
 #[cfg(test)]
@@ -490,7 +504,7 @@ mod tests {
     use deepcontact_core::{CarriedWarmStart, WorldSettings, scene};
 
     /// The pile's largest island, and the bodies' poses pushed 2 cm down (deeper contacts).
-    fn pile_problem() -> (ContactProblem, Vec<Pose>) {
+    pub(crate) fn pile_problem() -> (ContactProblem, Vec<Pose>) {
         let mut world = scene::pile(12345, 100)
             .unwrap()
             .build(WorldSettings::default())

@@ -38,7 +38,7 @@ const SPINS: u32 = 64;
 
 /// Waits until `ready()` holds: spins briefly, then yields.
 #[inline]
-fn wait_until(ready: impl Fn() -> bool) {
+pub(crate) fn wait_until(ready: impl Fn() -> bool) {
     let mut spins = 0;
     while !ready() {
         if spins < SPINS {
