@@ -69,6 +69,8 @@ pub struct PgsPositionSolver {
     domains: crate::position::domains::PositionDomains,
     /// The plain plan's rotation of each body, kept across the pass's iterations.
     rotations: Vec<Rotation>,
+    /// The most threads one island's pass has run on ([`Self::threads_used`]).
+    threads_used: usize,
 }
 
 impl PgsPositionSolver {
@@ -83,6 +85,15 @@ impl PgsPositionSolver {
             settings,
             ..Self::default()
         }
+    }
+
+    /// The most threads that one island's pass has run on with this solver since it was made
+    /// (0 before its first pass; 1 when every pass ran on the calling thread): no more than
+    /// [`PgsPositionSettings::threads`], the cores the process may use, and what the plan
+    /// offers side by side. Tests read it to know that the plan they ask for is the one that
+    /// ran; it never changes a result.
+    pub fn threads_used(&self) -> usize {
+        self.threads_used
     }
 
     /// A position solver whose large islands run on `threads` threads.
@@ -440,10 +451,12 @@ impl PositionSolver for PgsPositionSolver {
             if self.settings.domains > 0 {
                 self.domains
                     .build(self.settings.domains, threads, &self.rows, &self.renumbered);
-                self.domains
-                    .solve(threads, settings, &mut self.renumbered, &mut report);
+                let ran_on =
+                    self.domains
+                        .solve(threads, settings, &mut self.renumbered, &mut report);
+                self.threads_used = self.threads_used.max(ran_on);
             } else {
-                crate::position::chunked::solve(
+                let ran_on = crate::position::chunked::solve(
                     &self.rows,
                     &self.plan,
                     threads,
@@ -451,6 +464,7 @@ impl PositionSolver for PgsPositionSolver {
                     &mut self.renumbered,
                     &mut report,
                 );
+                self.threads_used = self.threads_used.max(ran_on);
             }
             for (&b, pose) in self.bodies.body_of.iter().zip(&self.renumbered) {
                 poses[b as usize] = *pose;
@@ -461,9 +475,11 @@ impl PositionSolver for PgsPositionSolver {
                 .extend((0..problem.points.len()).map(|k| PosRow::new(problem, k, settings)));
             let threads = crate::threads::sync::effective_threads(self.settings.threads);
             if threads > 1 && problem.points.len() >= ordered::ORDERED_MIN_POINTS {
-                ordered::solve(&self.rows, threads, settings, poses, &mut report);
+                let ran_on = ordered::solve(&self.rows, threads, settings, poses, &mut report);
+                self.threads_used = self.threads_used.max(ran_on);
                 return finite(poses, report);
             }
+            self.threads_used = self.threads_used.max(1);
             self.rotations.clear();
             self.rotations.resize(poses.len(), Rotation::default());
             let mut cached = CachedRotations {
@@ -603,6 +619,41 @@ mod tests {
         let (coloured, plain) = (f64::from_bits(runs[0].2), f64::from_bits(in_order.2));
         assert!((coloured - plain).abs() < 1e-4, "{coloured} vs {plain}");
         assert!(coloured > deepest + 0.015, "{coloured} from {deepest}");
+    }
+
+    #[test]
+    fn mid_sized_islands_on_two_threads_step_the_world_as_one_thread() {
+        // The 400-body pile until its largest island passes 256 points (the ordered plan) and
+        // stays under the domain plan's 2 048; every pose the same bits on 1 and 2 threads.
+        let run = |threads: usize| {
+            let mut world = scene::pile(12345, 400)
+                .unwrap()
+                .build(WorldSettings::default())
+                .unwrap();
+            let mut s = crate::PgsSolver::new();
+            let mut p = PgsPositionSolver::with_threads(threads);
+            let mut largest = 0;
+            for _ in 0..160 {
+                world.step(&mut CarriedWarmStart, &mut s, &mut p).unwrap();
+                let most = world.last_problems().iter().map(ContactProblem::len).max();
+                largest = largest.max(most.unwrap_or(0));
+            }
+            let bits: Vec<u64> = world
+                .bodies()
+                .iter()
+                .flat_map(|b| [b.position.x, b.position.y, b.angle].map(f64::to_bits))
+                .collect();
+            (bits, largest, p.threads_used())
+        };
+        let (one, largest, used_one) = run(1);
+        let (two, _, used_two) = run(2);
+        assert!(
+            (ordered::ORDERED_MIN_POINTS..2048).contains(&largest),
+            "largest island {largest} points"
+        );
+        assert_eq!(used_one, 1);
+        assert_eq!(used_two, crate::threads::sync::effective_threads(2));
+        assert_eq!(one, two);
     }
 
     #[test]

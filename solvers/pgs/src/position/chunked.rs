@@ -155,7 +155,7 @@ impl Poses for Shared<'_> {
 /// Runs the pass over `rows` (laid out in the order of `plan`, its chunks of `plan.chunk`
 /// points) on up to `threads` threads (≥ 1; no more than the widest colour has chunks), as
 /// the one-thread loop of [`crate::PgsPositionSolver`] does in problem order: same
-/// corrections, same stop rule, same report.
+/// corrections, same stop rule, same report. Returns the threads it ran on.
 pub(crate) fn solve(
     rows: &[PosRow],
     plan: &Plan,
@@ -163,7 +163,7 @@ pub(crate) fn solve(
     settings: &PositionSettings,
     poses: &mut [Pose],
     report: &mut PositionReport,
-) {
+) -> usize {
     let chunk = plan.chunk;
     // No more threads than the widest colour has chunks: the others would only wait.
     let widest = plan
@@ -197,7 +197,7 @@ pub(crate) fn solve(
                 break;
             }
         }
-        return;
+        return 1;
     }
     let starts = phase_starts(counts);
     let slots: [Vec<Cell3>; 2] =
@@ -242,4 +242,5 @@ pub(crate) fn solve(
     if let Some((it, last)) = passes.iter().enumerate().next_back() {
         last.judge(it as u32, settings, report);
     }
+    threads
 }

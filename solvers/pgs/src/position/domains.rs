@@ -56,14 +56,14 @@ impl PositionDomains {
     /// Runs the pass on up to `threads` threads (≥ 1; no more than half the domains, rounded up)
     /// under the stop
     /// rule of `settings`, and writes the poses back (`poses`: the island's, as given to
-    /// [`Self::build`]).
+    /// [`Self::build`]). Returns the threads it ran on.
     pub(crate) fn solve(
         &mut self,
         threads: usize,
         settings: &PositionSettings,
         poses: &mut [Pose],
         report: &mut PositionReport,
-    ) {
+    ) -> usize {
         self.rotations.resize_with(self.poses.len(), Vec::new);
         let mut parts: Vec<PositionPart<'_>> = self
             .rows
@@ -82,7 +82,7 @@ impl PositionDomains {
             .collect();
         let stop =
             |it: u32, m: &PassMeasures| m.judge(it, settings, &mut PositionReport::default());
-        let (passes, _) = sweep_parts(
+        let (passes, ran_on) = sweep_parts(
             &mut parts,
             &self.partition,
             threads,
@@ -100,6 +100,7 @@ impl PositionDomains {
                 poses[b as usize] = *pose;
             }
         }
+        ran_on
     }
 }
 

@@ -151,14 +151,15 @@ impl Plan {
 }
 
 /// Runs the pass over `rows` (problem order) on `threads` threads (≥ 2) under the stop rule
-/// of `settings`, writing the poses and the report as the one-thread loop would.
+/// of `settings`, writing the poses and the report as the one-thread loop would. Returns the
+/// threads it ran on.
 pub(crate) fn solve(
     rows: &[PosRow],
     threads: usize,
     settings: &PositionSettings,
     poses: &mut [Pose],
     report: &mut PositionReport,
-) {
+) -> usize {
     let plan = Plan::build(rows, poses, threads);
     let seams: Vec<Padded<Seam>> = plan
         .seams
@@ -259,6 +260,7 @@ pub(crate) fn solve(
     *report = shared_report
         .into_inner()
         .unwrap_or_else(std::sync::PoisonError::into_inner);
+    threads
 }
 
 #[cfg(test)]
