@@ -16,7 +16,7 @@ pub struct PgsPositionSettings {
     /// Threads that share the pass of one island (default 1; 0 counts as 1; no more than the
     /// cores the process may use are started): in the domain or coloured plan from
     /// [`parallel_min_points`](Self::parallel_min_points), in problem order from 256 points
-    /// below it (the ordered plan: each thread corrects the points of a slab of bodies along x,
+    /// below it (the ordered plan: each thread corrects the points of a slab of bodies,
     /// and a body two threads move waits for the corrections before it in problem order). The
     /// result is bit-identical for every thread count.
     pub threads: usize,

@@ -1,6 +1,6 @@
 //! The plain plan's pass (points in problem order) on several threads, with the bits of one.
 //!
-//! The island's movable bodies are cut into slabs along x, one a thread; a point belongs to
+//! The island's movable bodies are cut into slabs, one a thread; a point belongs to
 //! the slab of its first movable body, and each thread visits its own points in problem
 //! order on a copy of the poses. A movable body that points of two threads move (a seam
 //! body) lives in a shared cell with a count of the corrections applied to it. Before a
@@ -26,11 +26,12 @@ use crate::threads::sync::{Cell3, Padded, wait_until};
 
 /// Islands of at least this many points run the ordered plan when more than one thread is
 /// asked for and the island is below the domain plan's size; below it a thread's share is
-/// too short to pay for the waits.
+/// too short to pay for the waits (docs/PERFORMANCE.md: from 64 or 128 points the 100-body
+/// pile's pass got slower on two threads).
 pub(crate) const ORDERED_MIN_POINTS: usize = 256;
 
-/// The thread of each movable body (`u32::MAX` for an immovable one): slabs along x holding
-/// about as many movable bodies each, ties broken by body index.
+/// The thread of each movable body (`u32::MAX` for an immovable one): slabs holding about as
+/// many movable bodies each, ties broken by body index.
 fn slabs(rows: &[PosRow], poses: &[Pose], threads: usize) -> Vec<u32> {
     let mut movable = vec![false; poses.len()];
     for row in rows {
@@ -41,11 +42,23 @@ fn slabs(rows: &[PosRow], poses: &[Pose], threads: usize) -> Vec<u32> {
     let mut order: Vec<u32> = (0..poses.len() as u32)
         .filter(|&b| movable[b as usize])
         .collect();
+    // Slabs across the longer side of the bodies' bounds, so that the seams run along the
+    // shorter one: fewer seam bodies to hand over (docs/PERFORMANCE.md measures both cuts).
+    let (lo, hi) = order.iter().fold(
+        (
+            Vector::repeat(f64::INFINITY),
+            Vector::repeat(f64::NEG_INFINITY),
+        ),
+        |(lo, hi), &b| {
+            let c = poses[b as usize].position;
+            (lo.inf(&c), hi.sup(&c))
+        },
+    );
+    let along_x = hi.x - lo.x >= hi.y - lo.y;
+    let key = |p: &Pose| if along_x { p.position.x } else { p.position.y };
     order.sort_by(|&a, &b| {
-        poses[a as usize]
-            .position
-            .x
-            .total_cmp(&poses[b as usize].position.x)
+        key(&poses[a as usize])
+            .total_cmp(&key(&poses[b as usize]))
             .then(a.cmp(&b))
     });
     let mut owner = vec![u32::MAX; poses.len()];
