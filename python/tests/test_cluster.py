@@ -178,7 +178,10 @@ def test_a_killed_worker_loses_no_row(address, tmp_path):
 
 def test_an_interrupted_driver_writes_nothing(address, tmp_path):
     out = tmp_path / "out"
-    code = ("import deepcontact\n"
+    # A run launched in the background inherits SIGINT ignored, and Python then keeps it
+    # ignored: the driver installs Python's own handler, as an interactive shell's child has.
+    code = ("import signal; signal.signal(signal.SIGINT, signal.default_int_handler)\n"
+            "import deepcontact\n"
             f"deepcontact.compare(seeds=range(12345, 12349), steps=200, out={str(out)!r}, "
             f"cluster={address!r})\n")
     driver = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
