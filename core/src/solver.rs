@@ -256,6 +256,15 @@ pub trait VelocitySolver: Send {
         None
     }
 
+    /// The threads this solver shares one island of `points` contact points over (default 1:
+    /// it solves an island on the calling thread). When one island outweighs a thread's share
+    /// of the points, the world solves it with this solver if that is 2 or more and the other
+    /// islands on forks after it, else the largest on a fork beside the others.
+    fn threads_for(&self, points: usize) -> usize {
+        let _ = points;
+        1
+    }
+
     /// The world step's length `dt` (s) and `gravity` (m/s²), told once per step before its
     /// solves (default: ignored). A solver that integrates inside the step (substeps) needs
     /// them; the problem's velocities already hold the whole step's `dt × gravity`.
@@ -327,6 +336,9 @@ impl<S: VelocitySolver + ?Sized> VelocitySolver for Box<S> {
     }
     fn fork(&self) -> Option<Box<dyn VelocitySolver>> {
         (**self).fork()
+    }
+    fn threads_for(&self, points: usize) -> usize {
+        (**self).threads_for(points)
     }
     fn begin_step(&mut self, dt: Real, gravity: Vector) {
         (**self).begin_step(dt, gravity);
@@ -489,10 +501,16 @@ pub trait PositionSolver: Send {
     /// A pass with the same settings for another thread, which must correct every problem
     /// to the same bits as this one (default `None`: islands are corrected one after
     /// another). The world asks for forks when [`crate::WorldSettings::island_threads`] > 1
-    /// and no island holds more than a thread's share of the points; a fork corrects whole
-    /// islands on one thread.
+    /// (see [`Self::threads_for`]); a fork corrects whole islands on one thread.
     fn fork(&self) -> Option<Box<dyn PositionSolver>> {
         None
+    }
+
+    /// The threads this pass shares one island of `points` contact points over (default 1),
+    /// as [`VelocitySolver::threads_for`].
+    fn threads_for(&self, points: usize) -> usize {
+        let _ = points;
+        1
     }
 }
 
@@ -510,5 +528,8 @@ impl<S: PositionSolver + ?Sized> PositionSolver for Box<S> {
     }
     fn fork(&self) -> Option<Box<dyn PositionSolver>> {
         (**self).fork()
+    }
+    fn threads_for(&self, points: usize) -> usize {
+        (**self).threads_for(points)
     }
 }

@@ -681,10 +681,10 @@ impl World {
             .with_world(self, k, problems.len())
     }
 
-    /// Every island's velocity solve from its warm start: side by side on up to
-    /// `island_threads` threads when the solver can fork and no island holds more than a
-    /// thread's share of the points, else one after another. An island's result does not
-    /// depend on which thread solved it.
+    /// Every island's velocity solve from its warm start, spread over `island_threads` threads
+    /// as [`schedule`] decides: side by side on forks of the solver, or the largest island
+    /// first on the solver's own threads and the others side by side after it, or one after
+    /// another. An island's result does not depend on which thread solved it.
     fn solve_islands(&self, s: &mut Scratch, solver: &mut dyn VelocitySolver) {
         let settings = &self.settings.solver;
         let budget = self.settings.budget;
@@ -693,45 +693,52 @@ impl World {
             |solver: &mut dyn VelocitySolver, problem: &ContactProblem, w: &mut IslandWork| {
                 w.solve(solver, problem, settings, budget, owns_positions);
             };
-        let threads = side_by_side(&s.problems, self.settings.island_threads);
+        let plan = schedule(&s.problems, self.settings.island_threads, |points| {
+            solver.threads_for(points)
+        });
+        if let Some(k) = plan.first {
+            solve(solver, &s.problems[k], &mut s.islands[k]);
+        }
         // Every worker, the stepping thread included, on a fork: a fork runs one thread, so
         // the workers share the cores among islands instead of each sharing out its island.
-        let forks: Vec<_> = (0..threads).map_while(|_| solver.fork()).collect();
-        if forks.len() < 2 && (budget.is_some() || owns_positions) {
+        let forks: Vec<_> = (0..plan.forks).map_while(|_| solver.fork()).collect();
+        if forks.len() >= 2 {
+            on_forks(
+                &s.problems,
+                &mut s.islands,
+                &plan.rest,
+                forks,
+                |solver, problem, w| {
+                    solve(solver.as_mut(), problem, w);
+                },
+            );
+            return;
+        }
+        if budget.is_some() || owns_positions {
             // Each island has its own share of the budget, or a solver that moves its bodies
             // solves it: one call per island.
-            for (problem, w) in s.problems.iter().zip(&mut s.islands) {
-                solve(solver, problem, w);
+            for &k in &plan.rest {
+                solve(solver, &s.problems[k], &mut s.islands[k]);
             }
             return;
         }
-        if forks.len() < 2 {
-            // All islands in one call: the solver may sweep small ones side by side.
-            let mut islands: Vec<crate::IslandSolve<'_>> = s
-                .problems
-                .iter()
-                .zip(&mut s.islands)
-                .map(|(problem, w)| {
-                    w.reset_buffers(problem);
-                    crate::IslandSolve::new(
-                        problem,
-                        &mut w.impulses,
-                        &mut w.velocities,
-                        &mut w.report,
-                    )
-                })
-                .collect();
-            solver.solve_many(settings, &mut islands);
-            let errors: Vec<Option<CoreError>> =
-                islands.into_iter().map(|i| i.result.err()).collect();
-            for (w, error) in s.islands.iter_mut().zip(errors) {
-                w.error = error;
-            }
-            return;
+        // The rest in one call: the solver may sweep small ones side by side.
+        let mut islands: Vec<crate::IslandSolve<'_>> = s
+            .problems
+            .iter()
+            .zip(&mut s.islands)
+            .enumerate()
+            .filter(|&(k, _)| plan.first != Some(k))
+            .map(|(_, (problem, w))| {
+                w.reset_buffers(problem);
+                crate::IslandSolve::new(problem, &mut w.impulses, &mut w.velocities, &mut w.report)
+            })
+            .collect();
+        solver.solve_many(settings, &mut islands);
+        let errors: Vec<Option<CoreError>> = islands.into_iter().map(|i| i.result.err()).collect();
+        for (&k, error) in plan.rest.iter().zip(errors) {
+            s.islands[k].error = error;
         }
-        on_forks(&s.problems, &mut s.islands, forks, |solver, problem, w| {
-            solve(solver.as_mut(), problem, w);
-        });
     }
 
     /// Island `k` after its solve: the solver's error if it failed, else the provider's
@@ -835,9 +842,10 @@ impl World {
         }
     }
 
-    /// The position pass per island (not warm-started): side by side on forks of the pass
-    /// when [`side_by_side`] allows, else one after another. An island's pass reads and
-    /// writes its own bodies' poses only, so the bits are the same either way.
+    /// The position pass per island (not warm-started), spread over the threads as
+    /// [`schedule`] decides. An island's pass reads and writes its own bodies' poses only, so
+    /// the bits are the same either way. After a failure, the islands after it in island
+    /// order are not written back (as if the islands had been corrected one after another).
     fn position_pass(
         &mut self,
         s: &mut Scratch,
@@ -863,11 +871,22 @@ impl World {
             w.corrected = None;
         }
         let settings = &self.settings.position;
-        let threads = side_by_side(&s.problems, self.settings.island_threads);
-        let forks: Vec<_> = (0..threads).map_while(|_| position_solver.fork()).collect();
+        let plan = schedule(&s.problems, self.settings.island_threads, |points| {
+            position_solver.threads_for(points)
+        });
+        if let Some(k) = plan.first {
+            let w = &mut s.islands[k];
+            w.corrected =
+                Some(position_solver.solve_positions(&s.problems[k], settings, &mut w.poses));
+        }
+        let forks: Vec<_> = (0..plan.forks)
+            .map_while(|_| position_solver.fork())
+            .collect();
         if forks.len() < 2 {
-            for (problem, w) in s.problems.iter().zip(&mut s.islands) {
-                let corrected = position_solver.solve_positions(problem, settings, &mut w.poses);
+            for &k in &plan.rest {
+                let w = &mut s.islands[k];
+                let corrected =
+                    position_solver.solve_positions(&s.problems[k], settings, &mut w.poses);
                 let failed = corrected.is_err();
                 w.corrected = Some(corrected);
                 if failed {
@@ -875,9 +894,15 @@ impl World {
                 }
             }
         } else {
-            on_forks(&s.problems, &mut s.islands, forks, |pass, problem, w| {
-                w.corrected = Some(pass.solve_positions(problem, settings, &mut w.poses));
-            });
+            on_forks(
+                &s.problems,
+                &mut s.islands,
+                &plan.rest,
+                forks,
+                |pass, problem, w| {
+                    w.corrected = Some(pass.solve_positions(problem, settings, &mut w.poses));
+                },
+            );
         }
         // In island order, up to the first failure (the bodies of the islands before it
         // moved, as if the islands had been corrected one after another).
@@ -939,32 +964,78 @@ impl World {
 /// The stop rule of an island under a fixed budget of `budget` passes of which the provider
 /// spent `spent`: exactly the rest, at least one (the minimum equals the cap, so no tolerance
 /// ends it early).
-/// Threads for islands side by side: `island_threads` (at most one per island) when that is
-/// 2 or more and no island outweighs a thread's share of the points, else 0 (one after
-/// another: the largest island would set the time, and is better shared out by the solver
-/// itself).
-fn side_by_side(problems: &[ContactProblem], island_threads: usize) -> usize {
-    let threads = island_threads.min(problems.len());
-    let points: usize = problems.iter().map(ContactProblem::len).sum();
-    let largest = problems.iter().map(ContactProblem::len).max().unwrap_or(0);
-    if threads > 1 && largest * threads <= points {
-        threads
-    } else {
-        0
-    }
+/// How one step's islands are spread over the threads ([`schedule`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct Schedule {
+    /// The island solved first, alone, by the solver itself on the threads it shares an
+    /// island over (`None`: no island is).
+    first: Option<usize>,
+    /// The other islands, in island order.
+    rest: Vec<usize>,
+    /// Forks to run `rest` side by side on (0 or 1: one after another on the solver).
+    forks: usize,
 }
 
-/// Runs `job` on every island, each fork on a thread of its own (the calling thread's
+/// The least number of contact points the islands run on forks must hold together: below it
+/// a fork's thread costs more than the islands' sweeps (tens of microseconds against a few
+/// nanoseconds a point and pass).
+const FORK_MIN_POINTS: usize = 64;
+
+/// How to spread `problems` over `island_threads` threads, given the threads the solver
+/// shares one island of so many points over (`threads_for`):
+/// - every island side by side on forks, largest first, when no island outweighs a thread's
+///   share of the points, or when the largest is solved on one thread anyway (it then runs on
+///   one fork while the others take the rest);
+/// - else the largest first, shared out by the solver, then the others side by side on forks;
+/// - one after another when there is one thread, or the islands on forks would hold fewer than
+///   [`FORK_MIN_POINTS`] points together, or fewer than two islands are left.
+fn schedule(
+    problems: &[ContactProblem],
+    island_threads: usize,
+    threads_for: impl Fn(usize) -> usize,
+) -> Schedule {
+    let sizes: Vec<usize> = problems.iter().map(ContactProblem::len).collect();
+    schedule_sizes(&sizes, island_threads, threads_for)
+}
+
+/// [`schedule`] of islands of `sizes` contact points.
+fn schedule_sizes(
+    sizes: &[usize],
+    island_threads: usize,
+    threads_for: impl Fn(usize) -> usize,
+) -> Schedule {
+    let points: usize = sizes.iter().sum();
+    // The first of the largest islands.
+    let (largest, size) =
+        sizes.iter().enumerate().fold(
+            (0, 0),
+            |best, (k, &n)| if n > best.1 { (k, n) } else { best },
+        );
+    let outweighs = size * island_threads.min(sizes.len()) > points;
+    let first = (island_threads > 1 && outweighs && threads_for(size) > 1).then_some(largest);
+    let rest: Vec<usize> = (0..sizes.len()).filter(|&k| first != Some(k)).collect();
+    let on_forks = points - first.map_or(0, |_| size);
+    let forks = island_threads.min(rest.len());
+    let forks = if forks > 1 && on_forks >= FORK_MIN_POINTS {
+        forks
+    } else {
+        0
+    };
+    Schedule { first, rest, forks }
+}
+
+/// Runs `job` on the islands `which`, each fork on a thread of its own (the calling thread's
 /// included): islands claimed one at a time from a counter, largest first (so that the last
 /// to finish is a small one), each in a slot of its own. An island's result depends on the
 /// island alone, so which fork took it does not show in the bits.
 fn on_forks<F: Send>(
     problems: &[ContactProblem],
     islands: &mut [IslandWork],
+    which: &[usize],
     forks: Vec<F>,
     job: impl Fn(&mut F, &ContactProblem, &mut IslandWork) + Sync,
 ) {
-    let mut order: Vec<usize> = (0..problems.len()).collect();
+    let mut order = which.to_vec();
     order.sort_by_key(|&k| std::cmp::Reverse(problems[k].len()));
     let slots: Vec<_> = problems
         .iter()
@@ -1049,4 +1120,70 @@ impl Stage {
         Stage::PositionPass,
         Stage::StoreImpulses,
     ];
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{FORK_MIN_POINTS, Schedule, schedule_sizes};
+
+    /// A solver that shares islands from `from` points over `threads` threads.
+    fn shares(from: usize, threads: usize) -> impl Fn(usize) -> usize {
+        move |points| if points >= from { threads } else { 1 }
+    }
+
+    #[test]
+    fn a_dominant_island_solved_on_one_thread_runs_beside_the_others() {
+        // 1 200 of 2 000 points in one island that the solver sweeps on one thread: every
+        // island on forks (the largest on one while the other takes the rest), not one after
+        // another (2 000 points' time instead of 1 200).
+        let sizes = [400, 1200, 400];
+        let plan = schedule_sizes(&sizes, 2, shares(2048, 2));
+        let want = Schedule {
+            first: None,
+            rest: vec![0, 1, 2],
+            forks: 2,
+        };
+        assert_eq!(plan, want);
+    }
+
+    #[test]
+    fn a_dominant_island_the_solver_shares_goes_first_and_the_rest_side_by_side() {
+        let sizes = [400, 4000, 300, 100];
+        let plan = schedule_sizes(&sizes, 2, shares(2048, 2));
+        let want = Schedule {
+            first: Some(1),
+            rest: vec![0, 2, 3],
+            forks: 2,
+        };
+        assert_eq!(plan, want);
+        // The rest too small to be worth a thread: one after another.
+        let plan = schedule_sizes(&[4000, 20, 30], 2, shares(2048, 2));
+        assert_eq!((plan.first, plan.forks), (Some(0), 0));
+        const { assert!(50 < FORK_MIN_POINTS) };
+        // One island left: nothing to run side by side.
+        let plan = schedule_sizes(&[4000, 300], 2, shares(2048, 2));
+        assert_eq!((plan.first, plan.rest, plan.forks), (Some(0), vec![1], 0));
+    }
+
+    #[test]
+    fn balanced_islands_run_on_forks_and_one_thread_runs_them_in_order() {
+        let sizes = [300, 250, 260, 290];
+        let plan = schedule_sizes(&sizes, 2, shares(256, 2));
+        assert_eq!((plan.first, plan.forks), (None, 2));
+        let plan = schedule_sizes(&sizes, 1, shares(256, 2));
+        let want = Schedule {
+            first: None,
+            rest: vec![0, 1, 2, 3],
+            forks: 0,
+        };
+        assert_eq!(plan, want);
+        // More threads than islands: a fork per island (none outweighing a quarter).
+        assert_eq!(schedule_sizes(&[270; 4], 8, shares(256, 2)).forks, 4);
+        // With four threads the largest of `sizes` outweighs its share: it goes first.
+        let plan = schedule_sizes(&sizes, 8, shares(256, 2));
+        assert_eq!((plan.first, plan.forks), (Some(0), 3));
+        // No islands, or too few points: nothing on forks.
+        assert_eq!(schedule_sizes(&[], 2, shares(256, 2)).forks, 0);
+        assert_eq!(schedule_sizes(&[10, 12, 9], 2, shares(256, 2)).forks, 0);
+    }
 }

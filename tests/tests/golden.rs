@@ -250,8 +250,8 @@ impl PositionSolver for CountingPass {
 #[test]
 fn position_pass_of_islands_side_by_side_keeps_the_golden_bits() {
     // Two island threads: the falling pile's many small islands are corrected side by side
-    // (two forks a step), the settled pile's one large island one after another; the run
-    // ends in the golden bits.
+    // (two forks a step), and the settled pile's large island (corrected on one thread) on a
+    // fork beside the others; the run ends in the golden bits.
     let mut world = build(&scene::pile(12345, 100).unwrap());
     world
         .set_settings(WorldSettings {

@@ -519,4 +519,9 @@ impl VelocitySolver for PgsRescueSolver {
             ..self.settings
         })))
     }
+
+    /// PGS's threads for the island (a rescue runs on the calling thread).
+    fn threads_for(&self, points: usize) -> usize {
+        self.settings.pgs.threads_for(points)
+    }
 }

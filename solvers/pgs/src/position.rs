@@ -46,6 +46,27 @@ impl Default for PgsPositionSettings {
     }
 }
 
+impl PgsPositionSettings {
+    /// The threads a pass with these settings shares one island of `points` contact points
+    /// over: from [`parallel_min_points`](Self::parallel_min_points) those of the domain plan
+    /// (at most half the domains, rounded up) or of the shared colours, from 256 points those of
+    /// the ordered plan, capped at this process's cores; else 1.
+    pub fn threads_for(&self, points: usize) -> usize {
+        let threads = crate::threads::sync::effective_threads(self.threads);
+        if points >= self.parallel_min_points {
+            if self.domains > 0 {
+                threads.min(self.domains.div_ceil(2))
+            } else {
+                threads
+            }
+        } else if points >= ordered::ORDERED_MIN_POINTS {
+            threads
+        } else {
+            1
+        }
+    }
+}
+
 /// Non-linear Gauss-Seidel position correction (`b2ContactSolver::SolvePositionConstraints`).
 ///
 /// The separation of a point at the current poses is estimated from its separation when
@@ -404,6 +425,10 @@ impl PositionSolver for PgsPositionSolver {
             threads: 1,
             ..self.settings
         })))
+    }
+
+    fn threads_for(&self, points: usize) -> usize {
+        self.settings.threads_for(points)
     }
 
     fn solve_positions(

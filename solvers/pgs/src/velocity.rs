@@ -131,6 +131,34 @@ impl Default for PgsSettings {
     }
 }
 
+impl PgsSettings {
+    /// The threads a solve with these settings shares one island of `points` contact points
+    /// over: those of the domain or chunked plan (`f64`, coloured, laned, from
+    /// [`parallel_min_points`](Self::parallel_min_points)), capped at this process's cores
+    /// and, in the domain plan, at half the domains rounded up; else 1.
+    pub fn threads_for(&self, points: usize) -> usize {
+        if !self.plans_chunked(points) {
+            return 1;
+        }
+        let threads = crate::threads::sync::effective_threads(self.threads);
+        if self.domains > 0 {
+            threads.min(self.domains.div_ceil(2))
+        } else {
+            threads
+        }
+    }
+
+    /// Whether an island of `points` contact points is swept in the chunked plan of
+    /// [`crate::velocity::chunked`] or, with domains, the domain plan (`f64`, coloured, laned,
+    /// and large enough).
+    pub(crate) fn plans_chunked(&self, points: usize) -> bool {
+        self.precision == Precision::F64
+            && self.ordering == Ordering::Coloured
+            && self.lanes
+            && points >= self.parallel_min_points
+    }
+}
+
 /// Order in which a sweep visits the manifolds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Ordering {
@@ -302,10 +330,7 @@ impl PgsSolver {
     /// Whether an island of `points` contact points is swept in the chunked plan of
     /// [`crate::velocity::chunked`] (coloured, laned, and large enough).
     pub(crate) fn plans_chunked(&self, points: usize) -> bool {
-        self.settings.precision == Precision::F64
-            && self.settings.ordering == Ordering::Coloured
-            && self.settings.lanes
-            && points >= self.settings.parallel_min_points
+        self.settings.plans_chunked(points)
     }
 
     /// Whether an island of `points` contact points is swept in the domain plan of
@@ -600,6 +625,10 @@ impl VelocitySolver for PgsSolver {
             threads: 1,
             ..self.settings
         })))
+    }
+
+    fn threads_for(&self, points: usize) -> usize {
+        self.settings.threads_for(points)
     }
 
     fn solve(
