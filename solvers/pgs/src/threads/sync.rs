@@ -50,6 +50,18 @@ pub(crate) fn wait_until(ready: impl Fn() -> bool) {
     }
 }
 
+/// Marks a run aborted when the thread holding it unwinds from a panic, so that the threads
+/// waiting on it stop waiting and the scope passes the panic on instead of hanging.
+pub(crate) struct AbortOnPanic<'a>(pub(crate) &'a AtomicBool);
+
+impl Drop for AbortOnPanic<'_> {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            self.0.store(true, Mem::Release);
+        }
+    }
+}
+
 /// Runs iterations of phased work on `threads` threads (≥ 1; the caller is one of them).
 ///
 /// An iteration is `phase_starts.last()` items in phases (`phase_starts`: the first item of
@@ -60,7 +72,8 @@ pub(crate) fn wait_until(ready: impl Fn() -> bool) {
 /// completes an iteration's last item calls `judge(iteration, parity)` (0-based; `parity` =
 /// iteration mod 2, which `process(item, parity)` also gets); `true` stops the run. A thread
 /// that loses its core holds up at most the one item it claimed. What an item computes must
-/// not depend on which thread runs it. Returns the iterations run.
+/// not depend on which thread runs it. A panic in `process` or `judge` ends every thread's
+/// waits and reaches the caller. Returns the iterations run.
 pub(crate) fn run_phased(
     threads: usize,
     max_iterations: u32,
@@ -97,6 +110,7 @@ pub(crate) fn run_phased(
         (0..threads).map(|_| Padded(AtomicUsize::new(0))).collect();
     let (done, judged) = (Padded(AtomicUsize::new(0)), Padded(AtomicUsize::new(0)));
     let stopped = AtomicBool::new(false);
+    let aborted = AtomicBool::new(false);
     // Claims one item of segment t in phase p of iteration it, if one is left.
     let claim = |t: usize, it: usize, p: usize| -> Option<usize> {
         let first = it * offsets[t][phases] + offsets[t][p];
@@ -112,17 +126,21 @@ pub(crate) fn run_phased(
         None
     };
     let work = |me: usize| {
+        let _guard = AbortOnPanic(&aborted);
         for it in 0..max_iterations as usize {
             if it > 0 {
-                wait_until(|| judged.0.load(Mem::Acquire) >= it);
-                if stopped.load(Mem::Relaxed) {
+                wait_until(|| aborted.load(Mem::Acquire) || judged.0.load(Mem::Acquire) >= it);
+                if stopped.load(Mem::Relaxed) || aborted.load(Mem::Acquire) {
                     return;
                 }
             }
             for (p, &start) in phase_starts[..phases].iter().enumerate() {
                 // Every item of the earlier phases done before this phase's first.
                 let need = it * total + start;
-                wait_until(|| done.0.load(Mem::Acquire) >= need);
+                wait_until(|| aborted.load(Mem::Acquire) || done.0.load(Mem::Acquire) >= need);
+                if aborted.load(Mem::Acquire) {
+                    return;
+                }
                 for k in 0..threads {
                     let t = (me + k) % threads;
                     while let Some(item) = claim(t, it, p) {
@@ -217,6 +235,22 @@ mod tests {
                 run_phased(threads, 3, &starts, &|_, _| {}, &|_, _| false),
                 3
             );
+        }
+    }
+
+    #[test]
+    fn a_panicking_item_fails_the_run_instead_of_hanging_it() {
+        for threads in 1..=3 {
+            let run = std::panic::catch_unwind(|| {
+                run_phased(
+                    threads,
+                    10,
+                    &phase_starts([3, 4]),
+                    &|item, _| assert_ne!(item, 5, "item 5 fails"),
+                    &|_, _| false,
+                )
+            });
+            assert!(run.is_err(), "{threads} threads");
         }
     }
 
