@@ -22,7 +22,7 @@ use deepcontact_core::math::{Pose, Vector};
 use deepcontact_core::{PositionReport, PositionSettings};
 
 use crate::position::{CachedRotations, PassMeasures, PosRow, Rotation, correct_point};
-use crate::threads::sync::{Cell3, Padded, wait_until};
+use crate::threads::sync::{AbortOnPanic, Cell3, Padded, wait_until};
 
 /// Islands of at least this many points run the ordered plan when more than one thread is
 /// asked for and the island is below the domain plan's size; below it a thread's share is
@@ -191,8 +191,11 @@ pub(crate) fn solve(
     let shared_report = Mutex::new(PositionReport::default());
     let (arrived, released) = (Padded(AtomicUsize::new(0)), Padded(AtomicUsize::new(0)));
     let stopped = AtomicBool::new(false);
+    // Set when a thread panics: the others stop waiting, and the scope passes the panic on.
+    let aborted = AtomicBool::new(false);
     let start: &[Pose] = poses;
     let work = |t: usize| -> Vec<Pose> {
+        let _guard = AbortOnPanic(&aborted);
         let mut local = start.to_vec();
         let mut rotations = vec![Rotation::default(); local.len()];
         let mut own = CachedRotations {
@@ -206,7 +209,12 @@ pub(crate) fn solve(
                 for u in uses.iter().flatten() {
                     let cell = &seams[u.cell as usize].0;
                     let want = it as u64 * plan.seams[u.cell as usize].1 + u.before;
-                    wait_until(|| cell.count.load(Mem::Acquire) == want);
+                    wait_until(|| {
+                        aborted.load(Mem::Acquire) || cell.count.load(Mem::Acquire) == want
+                    });
+                    if aborted.load(Mem::Acquire) {
+                        return local;
+                    }
                     let [x, y, angle] = cell.pose.load();
                     own.poses[u.body as usize] = Pose::new(Vector::new(x, y), angle);
                 }
@@ -238,7 +246,10 @@ pub(crate) fn solve(
                 }
                 released.0.store(it + 1, Mem::Release);
             } else {
-                wait_until(|| released.0.load(Mem::Acquire) > it);
+                wait_until(|| aborted.load(Mem::Acquire) || released.0.load(Mem::Acquire) > it);
+                if aborted.load(Mem::Acquire) {
+                    return local;
+                }
             }
             if stopped.load(Mem::Relaxed) {
                 break;
