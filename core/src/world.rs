@@ -961,9 +961,6 @@ impl World {
     }
 }
 
-/// The stop rule of an island under a fixed budget of `budget` passes of which the provider
-/// spent `spent`: exactly the rest, at least one (the minimum equals the cap, so no tolerance
-/// ends it early).
 /// How one step's islands are spread over the threads ([`schedule`]).
 #[derive(Debug, Clone, PartialEq, Eq)]
 struct Schedule {
@@ -1068,6 +1065,9 @@ fn on_forks<F: Send>(
     });
 }
 
+/// The stop rule of an island under a fixed budget of `budget` passes of which the provider
+/// spent `spent`: exactly the rest, at least one (the minimum equals the cap, so no tolerance
+/// ends it early).
 fn budget_settings(settings: &SolverSettings, budget: u32, spent: u32) -> SolverSettings {
     let passes = budget.saturating_sub(spent).max(1);
     SolverSettings {
