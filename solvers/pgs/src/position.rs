@@ -55,7 +55,7 @@ impl PgsPositionSettings {
         let threads = crate::threads::sync::effective_threads(self.threads);
         if points >= self.parallel_min_points {
             if self.domains > 0 {
-                threads.min(self.domains.div_ceil(2))
+                crate::threads::domain_sweep::useful_threads(threads, self.domains)
             } else {
                 threads
             }

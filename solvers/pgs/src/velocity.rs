@@ -142,7 +142,7 @@ impl PgsSettings {
         }
         let threads = crate::threads::sync::effective_threads(self.threads);
         if self.domains > 0 {
-            threads.min(self.domains.div_ceil(2))
+            crate::threads::domain_sweep::useful_threads(threads, self.domains)
         } else {
             threads
         }

@@ -39,7 +39,7 @@ fn sweep_order(n: usize) -> impl Iterator<Item = usize> {
 }
 
 /// Threads that can work on `n` domains side by side: no more than the even domains.
-fn useful_threads(threads: usize, n: usize) -> usize {
+pub(crate) fn useful_threads(threads: usize, n: usize) -> usize {
     threads.clamp(1, n.div_ceil(2).max(1))
 }
 
