@@ -15,14 +15,14 @@
 //! threads meet once an iteration, where the last to arrive folds the measures and judges the
 //! stop rule.
 
-use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering as Mem};
+use std::sync::{Mutex, MutexGuard, PoisonError};
 
 use deepcontact_core::math::{Pose, Vector};
 use deepcontact_core::{PositionReport, PositionSettings};
 
 use crate::position::{CachedRotations, PassMeasures, PosRow, Rotation, correct_point};
-use crate::threads::sync::{AbortOnPanic, Cell3, Padded, wait_until};
+use crate::threads::sync::{AbortOnPanic, Cell3, Padded, wait_unless_aborted};
 
 /// Islands of at least this many points run the ordered plan when more than one thread is
 /// asked for and the island is below the domain plan's size; below it a thread's share is
@@ -209,10 +209,7 @@ pub(crate) fn solve(
                 for u in uses.iter().flatten() {
                     let cell = &seams[u.cell as usize].0;
                     let want = it as u64 * plan.seams[u.cell as usize].1 + u.before;
-                    wait_until(|| {
-                        aborted.load(Mem::Acquire) || cell.count.load(Mem::Acquire) == want
-                    });
-                    if aborted.load(Mem::Acquire) {
+                    if !wait_unless_aborted(&aborted, || cell.count.load(Mem::Acquire) == want) {
                         return local;
                     }
                     let [x, y, angle] = cell.pose.load();
@@ -226,30 +223,14 @@ pub(crate) fn solve(
                     cell.count.fetch_add(1, Mem::Release);
                 }
             }
-            *measures[t]
-                .lock()
-                .unwrap_or_else(std::sync::PoisonError::into_inner) = m;
+            *lock(&measures[t]) = m;
             if arrived.0.fetch_add(1, Mem::AcqRel) + 1 == (it + 1) * threads {
-                let mut all = PassMeasures::default();
-                for slot in &measures {
-                    all.merge(
-                        &slot
-                            .lock()
-                            .unwrap_or_else(std::sync::PoisonError::into_inner),
-                    );
-                }
-                let mut r = shared_report
-                    .lock()
-                    .unwrap_or_else(std::sync::PoisonError::into_inner);
-                if all.judge(it as u32, settings, &mut r) {
+                if judge(&measures, it as u32, settings, &mut lock(&shared_report)) {
                     stopped.store(true, Mem::Relaxed);
                 }
                 released.0.store(it + 1, Mem::Release);
-            } else {
-                wait_until(|| aborted.load(Mem::Acquire) || released.0.load(Mem::Acquire) > it);
-                if aborted.load(Mem::Acquire) {
-                    return local;
-                }
+            } else if !wait_unless_aborted(&aborted, || released.0.load(Mem::Acquire) > it) {
+                return local;
             }
             if stopped.load(Mem::Relaxed) {
                 break;
@@ -271,20 +252,44 @@ pub(crate) fn solve(
         }));
         locals
     });
-    // Each body from the copy of the thread that moved it, a seam body from its cell.
+    write_back(&plan, &seams, &locals, poses);
+    *report = shared_report
+        .into_inner()
+        .unwrap_or_else(PoisonError::into_inner);
+    threads
+}
+
+/// The value behind `m` (a panicked thread has already made the pass fail).
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// The threads' measures of iteration `it` (0-based) folded in thread order and judged into
+/// `report`: whether the pass stops.
+fn judge(
+    measures: &[Mutex<PassMeasures>],
+    it: u32,
+    settings: &PositionSettings,
+    report: &mut PositionReport,
+) -> bool {
+    let mut all = PassMeasures::default();
+    for slot in measures {
+        all.merge(&lock(slot));
+    }
+    all.judge(it, settings, report)
+}
+
+/// Each body's pose from the copy of the thread that moved it, a seam body's from its cell.
+fn write_back(plan: &Plan, seams: &[Padded<Seam>], locals: &[Vec<Pose>], poses: &mut [Pose]) {
     for (b, pose) in poses.iter_mut().enumerate() {
         if let Some(local) = locals.get(plan.mover[b] as usize) {
             *pose = local[b];
         }
     }
-    for (&(b, _), seam) in plan.seams.iter().zip(&seams) {
+    for (&(b, _), seam) in plan.seams.iter().zip(seams) {
         let [x, y, angle] = seam.0.pose.load();
         poses[b as usize] = Pose::new(Vector::new(x, y), angle);
     }
-    *report = shared_report
-        .into_inner()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
-    threads
 }
 
 #[cfg(test)]

@@ -62,6 +62,13 @@ impl Drop for AbortOnPanic<'_> {
     }
 }
 
+/// Waits until `ready()` holds or the run is `aborted`; `false` when it was aborted.
+#[inline]
+pub(crate) fn wait_unless_aborted(aborted: &AtomicBool, ready: impl Fn() -> bool) -> bool {
+    wait_until(|| aborted.load(Mem::Acquire) || ready());
+    !aborted.load(Mem::Acquire)
+}
+
 /// Runs iterations of phased work on `threads` threads (≥ 1; the caller is one of them).
 ///
 /// An iteration is `phase_starts.last()` items in phases (`phase_starts`: the first item of
@@ -128,17 +135,16 @@ pub(crate) fn run_phased(
     let work = |me: usize| {
         let _guard = AbortOnPanic(&aborted);
         for it in 0..max_iterations as usize {
-            if it > 0 {
-                wait_until(|| aborted.load(Mem::Acquire) || judged.0.load(Mem::Acquire) >= it);
-                if stopped.load(Mem::Relaxed) || aborted.load(Mem::Acquire) {
-                    return;
-                }
+            if it > 0
+                && (!wait_unless_aborted(&aborted, || judged.0.load(Mem::Acquire) >= it)
+                    || stopped.load(Mem::Relaxed))
+            {
+                return;
             }
             for (p, &start) in phase_starts[..phases].iter().enumerate() {
                 // Every item of the earlier phases done before this phase's first.
                 let need = it * total + start;
-                wait_until(|| aborted.load(Mem::Acquire) || done.0.load(Mem::Acquire) >= need);
-                if aborted.load(Mem::Acquire) {
+                if !wait_unless_aborted(&aborted, || done.0.load(Mem::Acquire) >= need) {
                     return;
                 }
                 for k in 0..threads {
