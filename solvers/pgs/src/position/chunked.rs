@@ -13,7 +13,7 @@ use deepcontact_core::{ContactProblem, PositionReport, PositionSettings};
 use crate::position::{PassMeasures, PosRow, Poses, correct_point, immovable};
 use std::sync::Mutex;
 
-use crate::threads::sync::{Cell3, phase_starts, run_phased};
+use crate::threads::sync::{Cell3, lock, phase_starts, run_phased};
 use crate::threads::z_order::ZOrder;
 
 /// Points per chunk: the unit a thread takes.
@@ -225,10 +225,7 @@ pub(crate) fn solve(
                 max_impulse,
             });
         }
-        passes
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .push(all);
+        lock(&passes).push(all);
         all.judge(it, settings, &mut PositionReport::default())
     };
     run_phased(threads, settings.max_iterations, &starts, &process, &judge);

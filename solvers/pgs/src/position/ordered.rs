@@ -16,13 +16,13 @@
 //! stop rule.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering as Mem};
-use std::sync::{Mutex, MutexGuard, PoisonError};
+use std::sync::{Mutex, PoisonError};
 
 use deepcontact_core::math::{Pose, Vector};
 use deepcontact_core::{PositionReport, PositionSettings};
 
 use crate::position::{CachedRotations, PassMeasures, PosRow, Rotation, correct_point};
-use crate::threads::sync::{AbortOnPanic, Cell3, Padded, wait_unless_aborted};
+use crate::threads::sync::{AbortOnPanic, Cell3, Padded, lock, wait_unless_aborted};
 
 /// Islands of at least this many points run the ordered plan when more than one thread is
 /// asked for and the island is below the domain plan's size; below it a thread's share is
@@ -257,11 +257,6 @@ pub(crate) fn solve(
         .into_inner()
         .unwrap_or_else(PoisonError::into_inner);
     threads
-}
-
-/// The value behind `m` (a panicked thread has already made the pass fail).
-fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
 /// The threads' measures of iteration `it` (0-based) folded in thread order and judged into

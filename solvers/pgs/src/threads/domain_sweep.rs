@@ -9,10 +9,10 @@
 //! all constraints whatever the threads, and the domains' measures are folded in sweep order,
 //! so the result is bit-identical for any thread count.
 
-use std::sync::{Mutex, MutexGuard, PoisonError};
+use std::sync::{Mutex, PoisonError};
 
 use crate::threads::partition::Partition;
-use crate::threads::sync::{Cell3, Padded, phase_starts, run_phased};
+use crate::threads::sync::{Cell3, Padded, lock, phase_starts, run_phased};
 
 /// One domain of a partition as the loop sweeps it.
 pub(crate) trait Part: Send {
@@ -26,11 +26,6 @@ pub(crate) trait Part: Send {
     fn sweep(&mut self) -> Self::Measures;
     /// Folds `m` (of a domain swept after those of `into`) into `into`.
     fn fold(into: &mut Self::Measures, m: &Self::Measures);
-}
-
-/// The value behind `m` (a panicked sweep has already made the solve fail).
-fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
 /// The domains of `n` in sweep order: the even ones, then the odd ones.

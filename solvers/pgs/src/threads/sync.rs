@@ -2,6 +2,7 @@
 //! velocity, a pose, a set of measures) and a queue of phased work items.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering as Mem};
+use std::sync::{Mutex, MutexGuard, PoisonError};
 
 /// Three `f64`s that threads share, as bits in relaxed atomics (plain loads and stores on
 /// x86-64 and AArch64): each is written by one thread within a phase, and [`run_phased`]'s
@@ -60,6 +61,12 @@ impl Drop for AbortOnPanic<'_> {
             self.0.store(true, Mem::Release);
         }
     }
+}
+
+/// The value behind `m`, also after a thread panicked holding it: that panic already fails the
+/// run (it reaches the caller), and the value is only read to finish it.
+pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
 /// Waits until `ready()` holds or the run is `aborted`; `false` when it was aborted.

@@ -13,7 +13,7 @@ use deepcontact_core::{ResidualNorm, SolveReport, SolverSettings};
 
 use std::sync::Mutex;
 
-use crate::threads::sync::{Cell3, phase_starts, run_phased};
+use crate::threads::sync::{Cell3, lock, phase_starts, run_phased};
 use crate::velocity::{
     Batch, LaneSweep, Manifold, Row, Segment, Sweep, Vel, Velocities, Verdict, judge, sweep_batch,
     sweep_manifold,
@@ -136,10 +136,7 @@ pub(crate) fn solve_chunked(
         for slot in &slots[parity] {
             sweep.add(&read(slot));
         }
-        let mut sweeps = sweeps
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
-        sweeps.push(sweep);
+        lock(&sweeps).push(sweep);
         judge(settings, it + 1, &sweep, None) != Verdict::Continue
     };
     run_phased(
@@ -324,17 +321,11 @@ fn sweep_item<const CONTACT: bool>(
     rows: &Mutex<&mut [Row]>,
     vel: &[Cell3],
 ) -> Sweep {
-    use std::sync::PoisonError;
     let mut vel = Shared(vel);
     match item {
-        Item::Batches(batches) => sweep_batches::<CONTACT>(
-            &mut batches.lock().unwrap_or_else(PoisonError::into_inner),
-            &mut vel,
-        ),
-        Item::Serial(range) => sweep_serial::<CONTACT, _>(
-            &serial[range.clone()],
-            &mut rows.lock().unwrap_or_else(PoisonError::into_inner),
-            &mut vel,
-        ),
+        Item::Batches(batches) => sweep_batches::<CONTACT>(&mut lock(batches), &mut vel),
+        Item::Serial(range) => {
+            sweep_serial::<CONTACT, _>(&serial[range.clone()], &mut lock(rows), &mut vel)
+        }
     }
 }
