@@ -2,7 +2,7 @@
 //! velocity, a pose, a set of measures) and a queue of phased work items.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering as Mem};
-use std::sync::{Mutex, MutexGuard, PoisonError};
+use std::sync::{Mutex, MutexGuard, OnceLock, PoisonError};
 
 /// Three `f64`s that threads share, as bits in relaxed atomics (plain loads and stores on
 /// x86-64 and AArch64): each is written by one thread within a phase, and [`run_phased`]'s
@@ -188,8 +188,18 @@ pub(crate) struct Padded<T>(pub(crate) T);
 /// Threads to run for a request of `requested`: no more than the cores this process may
 /// use. The result never depends on it.
 pub(crate) fn effective_threads(requested: usize) -> usize {
-    let cores = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
-    requested.clamp(1, cores)
+    if requested <= 1 {
+        return 1;
+    }
+    requested.min(cores())
+}
+
+/// The cores this process may use, read once: the standard library reads the CPU affinity
+/// and the cgroup quota files at every call (about ten system calls), and the world asks for
+/// every island of every step.
+fn cores() -> usize {
+    static CORES: OnceLock<usize> = OnceLock::new();
+    *CORES.get_or_init(|| std::thread::available_parallelism().map_or(1, std::num::NonZero::get))
 }
 
 /// The first items of each phase, from each phase's item count: `[0, n0, n0 + n1, …]`.
