@@ -82,10 +82,11 @@ pub(crate) fn wait_unless_aborted(aborted: &AtomicBool, ready: impl Fn() -> bool
 /// each phase, ascending from 0, then the item count). Every thread walks the phases in
 /// order; each phase is split into one contiguous home segment per thread, and a thread
 /// claims the items of its own segment first, then helps with the others' (each segment has
-/// its own counter), then waits until every item of the phase is done. The thread that
-/// completes an iteration's last item calls `judge(iteration, parity)` (0-based; `parity` =
-/// iteration mod 2, which `process(item, parity)` also gets); `true` stops the run. A thread
-/// that loses its core holds up at most the one item it claimed. What an item computes must
+/// its own counter), counts the items it did, and waits until every item of the phase is
+/// done. The thread whose count completes an iteration calls `judge(iteration, parity)`
+/// (0-based; `parity` = iteration mod 2, which `process(item, parity)` also gets); `true`
+/// stops the run. A thread that loses its core holds up at most the one item it claimed and
+/// the count of those it did before. What an item computes must
 /// not depend on which thread runs it. A panic in `process` or `judge` ends every thread's
 /// waits and reaches the caller. Returns the iterations run.
 pub(crate) fn run_phased(
@@ -154,17 +155,21 @@ pub(crate) fn run_phased(
                 if !wait_unless_aborted(&aborted, || done.0.load(Mem::Acquire) >= need) {
                     return;
                 }
+                let mut mine = 0;
                 for k in 0..threads {
                     let t = (me + k) % threads;
                     while let Some(item) = claim(t, it, p) {
                         process(item, it % 2);
-                        if done.0.fetch_add(1, Mem::AcqRel) + 1 == (it + 1) * total {
-                            if judge(it as u32, it % 2) {
-                                stopped.store(true, Mem::Relaxed);
-                            }
-                            judged.0.store(it + 1, Mem::Release);
-                        }
+                        mine += 1;
                     }
+                }
+                // A thread's items of the phase counted at once, when none is left to claim:
+                // the count's cache line crosses the cores once a thread, not once an item.
+                if mine > 0 && done.0.fetch_add(mine, Mem::AcqRel) + mine == (it + 1) * total {
+                    if judge(it as u32, it % 2) {
+                        stopped.store(true, Mem::Relaxed);
+                    }
+                    judged.0.store(it + 1, Mem::Release);
                 }
             }
         }
