@@ -3,8 +3,9 @@
 //! from the same snapshot, alternately for `--rounds` rounds: the plain one-thread solvers
 //! (unchunked sweep, position pass in problem order), and the planned sweeps on 1 thread and on
 //! `--threads` threads (islands side by side; the velocity sweep in the domain plan of
-//! `--domains` domains, default 16, or with `--domains 0` in the chunked plan; the position
-//! pass likewise in domains or, with `--domains 0`, in shared colours), as `simulate
+//! at most `--domains` domains of at least `--domain-points` points each (defaults 16 and
+//! 1 100; `--domain-points 0`: exactly `--domains`), or with `--domains 0` in the chunked
+//! plan; the position pass likewise in domains or, with `--domains 0`, in shared colours), as `simulate
 //! --threads` runs. The pile is settled with the chunked plans (the snapshot of the earlier
 //! measurements). Prints ms per step (whole step, velocity solve, the rest) per thread
 //! count and the ratio T threads / 1 thread (of the medians, of each round's pair, and of
@@ -32,6 +33,7 @@ struct Options {
     settle: u64,
     rounds: usize,
     domains: usize,
+    domain_points: usize,
     seed: u64,
 }
 
@@ -43,6 +45,7 @@ fn parse() -> Result<Option<Options>, String> {
         settle: 0,
         rounds: 3,
         domains: PgsSettings::default().domains,
+        domain_points: PgsSettings::default().domain_points,
         seed: SEED,
     };
     let mut args = std::env::args().skip(1);
@@ -50,7 +53,7 @@ fn parse() -> Result<Option<Options>, String> {
         if a == "--help" || a == "-h" {
             println!(
                 "usage: threads [--bodies 10000] [--threads 2] [--steps 5] [--settle STEPS] \
-                 [--rounds 3] [--domains 16] [--seed 12345]  (--settle default: 250 × (bodies / 100)^¼)"
+                 [--rounds 3] [--domains 16] [--domain-points 1100] [--seed 12345]  (--settle default: 250 × (bodies / 100)^¼)"
             );
             return Ok(None);
         }
@@ -63,6 +66,7 @@ fn parse() -> Result<Option<Options>, String> {
             "--settle" => o.settle = number(&value)?,
             "--rounds" => o.rounds = number(&value)? as usize,
             "--domains" => o.domains = number(&value)? as usize,
+            "--domain-points" => o.domain_points = number(&value)? as usize,
             "--seed" => o.seed = number(&value)?,
             _ => return Err(format!("unknown option {a} (see --help)")),
         }
@@ -93,32 +97,35 @@ struct Run {
 #[derive(Clone, Copy)]
 enum Config {
     Plain,
-    Chunked(usize, usize),
+    /// Threads, most domains, points a domain.
+    Chunked(usize, usize, usize),
 }
 
 impl Config {
     fn label(self) -> String {
         match self {
             Config::Plain => "1, unchunked".into(),
-            Config::Chunked(t, _) => format!("{t}"),
+            Config::Chunked(t, _, _) => format!("{t}"),
         }
     }
 
     fn solvers(self) -> (PgsSolver, PgsPositionSolver) {
-        let (threads, from, domains) = match self {
-            Config::Plain => (1, usize::MAX, 0),
-            Config::Chunked(t, d) => (t, PgsSettings::default().parallel_min_points, d),
+        let (threads, from, domains, domain_points) = match self {
+            Config::Plain => (1, usize::MAX, 0, 0),
+            Config::Chunked(t, d, p) => (t, PgsSettings::default().parallel_min_points, d, p),
         };
         let solver = PgsSolver::with_settings(PgsSettings {
             threads,
             parallel_min_points: from,
             domains,
+            domain_points,
             ..PgsSettings::default()
         });
         let position = PgsPositionSolver::with_settings(PgsPositionSettings {
             threads,
             parallel_min_points: from,
             domains,
+            domain_points,
         });
         (solver, position)
     }
@@ -129,7 +136,7 @@ fn run(snapshot: &World, config: Config, steps: u64) -> Result<Run, String> {
     let mut world = snapshot.clone();
     let island_threads = match config {
         Config::Plain => 1,
-        Config::Chunked(t, _) => t,
+        Config::Chunked(t, _, _) => t,
     };
     world
         .set_settings(WorldSettings {
@@ -234,8 +241,8 @@ fn main() -> Result<(), String> {
     let world = settled_pile(&o)?;
     let configs = [
         Config::Plain,
-        Config::Chunked(1, o.domains),
-        Config::Chunked(o.threads, o.domains),
+        Config::Chunked(1, o.domains, o.domain_points),
+        Config::Chunked(o.threads, o.domains, o.domain_points),
     ];
     let mut runs: [Vec<Run>; 3] = [Vec::new(), Vec::new(), Vec::new()];
     for round in 0..o.rounds {

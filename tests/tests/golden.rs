@@ -133,12 +133,13 @@ fn chunked(threads: usize, position: bool) -> (PgsSolver, PgsPositionSolver) {
 }
 
 /// [`chunked`] with the velocity sweep's and the position pass's `domains` (0: the chunked
-/// and coloured plans).
+/// and coloured plans), that many whatever the islands' sizes.
 fn planned(threads: usize, position: bool, domains: usize) -> (PgsSolver, PgsPositionSolver) {
     let solver = PgsSolver::with_settings(PgsSettings {
         threads,
         parallel_min_points: 0,
         domains,
+        domain_points: 0,
         chunk: 1,
         ..PgsSettings::default()
     });
@@ -147,6 +148,7 @@ fn planned(threads: usize, position: bool, domains: usize) -> (PgsSolver, PgsPos
             threads,
             parallel_min_points: 0,
             domains,
+            domain_points: 0,
         })
     } else {
         PgsPositionSolver::new()

@@ -134,6 +134,7 @@ fn pgs_plans() -> [(&'static str, PgsSettings); 5] {
             PgsSettings {
                 parallel_min_points: 0,
                 domains: 0,
+                domain_points: 0,
                 chunk: 1,
                 ..d
             },
@@ -143,6 +144,7 @@ fn pgs_plans() -> [(&'static str, PgsSettings); 5] {
             PgsSettings {
                 parallel_min_points: 0,
                 domains: 2,
+                domain_points: 0,
                 ..d
             },
         ),

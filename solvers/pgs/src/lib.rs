@@ -55,7 +55,7 @@ mod velocity;
 
 pub use position::{PgsPositionSettings, PgsPositionSolver};
 pub use registry::{MAX_THREADS, register};
-pub use threads::partition::MAX_DOMAINS;
+pub use threads::partition::{DOMAIN_POINTS, MAX_DOMAINS};
 pub use velocity::{LANES, Ordering, PgsSettings, PgsSolver, Precision};
 
 /// Errors of this crate (wrapped into [`deepcontact_core::CoreError`] at the trait boundary).

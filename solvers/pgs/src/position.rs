@@ -34,6 +34,11 @@ pub struct PgsPositionSettings {
     /// of a colour move the same body, visited colour by colour, each colour's points in fixed
     /// chunks that threads share through atomics (which scales worse).
     pub domains: usize,
+    /// Contact points a domain holds at least (default 1 100; 0: always
+    /// [`domains`](Self::domains)), as the velocity sweep's
+    /// ([`PgsSettings::domain_points`](crate::PgsSettings::domain_points)): `n / domain_points`
+    /// domains for an island of `n` points, at least 4 and at most `domains`.
+    pub domain_points: usize,
 }
 
 impl Default for PgsPositionSettings {
@@ -42,6 +47,7 @@ impl Default for PgsPositionSettings {
             threads: 1,
             parallel_min_points: 2048,
             domains: 16,
+            domain_points: crate::DOMAIN_POINTS,
         }
     }
 }
@@ -55,7 +61,7 @@ impl PgsPositionSettings {
         let threads = crate::threads::sync::effective_threads(self.threads);
         if points >= self.parallel_min_points {
             if self.domains > 0 {
-                crate::threads::domain_sweep::useful_threads(threads, self.domains)
+                crate::threads::domain_sweep::useful_threads(threads, self.domains_for(points))
             } else {
                 threads
             }
@@ -64,6 +70,12 @@ impl PgsPositionSettings {
         } else {
             1
         }
+    }
+
+    /// The domains of an island of `points` contact points in the domain plan
+    /// ([`domain_points`](Self::domain_points)).
+    pub(crate) fn domains_for(&self, points: usize) -> usize {
+        crate::threads::partition::domains_for(points, self.domains, self.domain_points)
     }
 }
 
@@ -474,8 +486,12 @@ impl PositionSolver for PgsPositionSolver {
                 .extend(self.bodies.body_of.iter().map(|&b| poses[b as usize]));
             let threads = crate::threads::sync::effective_threads(self.settings.threads);
             if self.settings.domains > 0 {
-                self.domains
-                    .build(self.settings.domains, threads, &self.rows, &self.renumbered);
+                self.domains.build(
+                    self.settings.domains_for(self.rows.len()),
+                    threads,
+                    &self.rows,
+                    &self.renumbered,
+                );
                 let ran_on =
                     self.domains
                         .solve(threads, settings, &mut self.renumbered, &mut report);
@@ -625,6 +641,7 @@ mod tests {
                     threads,
                     parallel_min_points: 0,
                     domains: 0,
+                    domain_points: 0,
                 };
                 pass_bits(&problem, &start, settings)
             })
@@ -696,6 +713,7 @@ mod tests {
                         threads,
                         parallel_min_points: 0,
                         domains,
+                        domain_points: 0,
                     };
                     pass_bits(&problem, &start, settings)
                 })

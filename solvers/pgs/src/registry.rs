@@ -19,7 +19,9 @@ pub fn register(registry: &mut Registry) {
          bit-identical for any N), parallel_from=POINTS (islands from this size are swept in \
          fixed chunks that threads share; default 2048), domains=N (such islands cut into N \
          bands of their contact graph, the even ones swept side by side on threads, then the \
-         odd ones; 0: colours shared in chunks instead; default 16), chunk=N (batches of 4 \
+         odd ones; 0: colours shared in chunks instead; default 16, the most), domain_points=N \
+         (a band holds at least N contacts, at least 4 bands; 0: always domains; default 1100), \
+         chunk=N (batches of 4 \
          contacts per chunk of that colour plan, the unit a thread takes; default 16), \
          precision=f64|f32 (f32: the iterations in single precision, 8 contacts per AVX2 \
          register, on the calling thread; default f64)",
@@ -46,6 +48,7 @@ pub fn register(registry: &mut Registry) {
                     format!("must be 0 to {MAX_DOMAINS}"),
                 ));
             }
+            let domain_points = p.u64("domain_points", d.domain_points as u64)?;
             let chunk = p.u64("chunk", d.chunk as u64)?;
             if chunk == 0 {
                 return Err(p.invalid("chunk", "0", "must be >= 1"));
@@ -71,6 +74,7 @@ pub fn register(registry: &mut Registry) {
                 threads: threads as usize,
                 parallel_min_points,
                 domains: domains as usize,
+                domain_points: usize::try_from(domain_points).unwrap_or(usize::MAX),
                 chunk: usize::try_from(chunk).unwrap_or(usize::MAX),
                 precision,
                 ..d

@@ -89,6 +89,13 @@ pub struct PgsSettings {
     /// unchunked sweep's bits but shares every colour between threads through atomics, which
     /// scales worse.
     pub domains: usize,
+    /// Contact points a domain of the domain plan holds at least (default 1 100; 0: always
+    /// [`domains`](Self::domains)): an island of `n` points is cut into `n / domain_points`
+    /// domains, at least 4 (two side by side in each phase) and at most `domains`. Short
+    /// domains cost the one-thread sweep part-filled batches and a seam hand-over each an
+    /// iteration (16 domains of a 5 260-point island: 1.23–1.32 × the plain sweep's step on
+    /// one thread, 4 domains 1.06 ×, two threads the same for both; docs/PERFORMANCE.md).
+    pub domain_points: usize,
     /// Batches ([`LANES`] single-point manifolds each) per chunk of the chunked plan
     /// (default 16; 0 counts as 1): the unit a thread takes, so no more threads share a colour
     /// than it has chunks. Changes only the order in which `Σ Δλ²` is summed.
@@ -125,6 +132,7 @@ impl Default for PgsSettings {
             threads: 1,
             parallel_min_points: 2048,
             domains: 16,
+            domain_points: crate::DOMAIN_POINTS,
             chunk: crate::velocity::chunked::CHUNK,
             precision: Precision::F64,
         }
@@ -142,10 +150,16 @@ impl PgsSettings {
         }
         let threads = crate::threads::sync::effective_threads(self.threads);
         if self.domains > 0 {
-            crate::threads::domain_sweep::useful_threads(threads, self.domains)
+            crate::threads::domain_sweep::useful_threads(threads, self.domains_for(points))
         } else {
             threads
         }
+    }
+
+    /// The domains of an island of `points` contact points in the domain plan
+    /// ([`domain_points`](Self::domain_points)).
+    pub(crate) fn domains_for(&self, points: usize) -> usize {
+        crate::threads::partition::domains_for(points, self.domains, self.domain_points)
     }
 
     /// Whether an island of `points` contact points is swept in the chunked plan of
@@ -530,7 +544,7 @@ impl PgsSolver {
             (it, verdict, 1)
         } else if self.plans_domains(points) {
             self.domains.build(
-                self.settings.domains,
+                self.settings.domains_for(points),
                 crate::threads::sync::effective_threads(self.settings.threads),
                 &self.manifolds,
                 &self.rows,
@@ -945,6 +959,7 @@ mod tests {
                             threads,
                             parallel_min_points: 0,
                             domains: 0,
+                            domain_points: 0,
                             chunk: 1,
                             ..PgsSettings::default()
                         };
@@ -983,6 +998,7 @@ mod tests {
                 threads: 64,
                 parallel_min_points: 0,
                 domains,
+                domain_points: 0,
                 chunk: 1,
                 ..PgsSettings::default()
             };
@@ -1010,6 +1026,7 @@ mod tests {
                     threads,
                     parallel_min_points: 0,
                     domains,
+                    domain_points: 0,
                     chunk: 1,
                     precision: Precision::F32,
                     ..PgsSettings::default()
@@ -1125,6 +1142,7 @@ mod tests {
                         threads,
                         parallel_min_points,
                         domains,
+                        domain_points: 0,
                         chunk: 1,
                         ..PgsSettings::default()
                     };
@@ -1193,6 +1211,7 @@ mod tests {
                                 threads,
                                 parallel_min_points: 0,
                                 domains,
+                                domain_points: 0,
                                 ..PgsSettings::default()
                             };
                             solve_bits_with(&problem, &start, settings, &stop)
@@ -1209,6 +1228,36 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn the_default_domain_plan_cuts_a_small_island_into_four_domains() {
+        // The pile's island (a few hundred points) in the domain plan with the default
+        // `domains` (16) and `domain_points` (1 100): four domains, not sixteen.
+        let problem = pile_problem();
+        let start = loaded_start(&problem);
+        let mut solver = PgsSolver::with_settings(PgsSettings {
+            parallel_min_points: 0,
+            ..PgsSettings::default()
+        });
+        let mut imp = start.clone();
+        let mut vel = vec![Velocity::default(); problem.bodies.len()];
+        let mut report = SolveReport::default();
+        solver
+            .solve(
+                &problem,
+                &SolverSettings::default(),
+                &mut imp,
+                &mut vel,
+                &mut report,
+            )
+            .unwrap();
+        assert!(
+            report.iterations > 1,
+            "ran {} iterations",
+            report.iterations
+        );
+        assert_eq!(solver.domains.partition.n, 4);
     }
 
     #[test]

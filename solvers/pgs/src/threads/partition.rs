@@ -21,6 +21,20 @@ pub(crate) type Ends = [(u32, bool); 2];
 /// The most domains: a body's parts are bits of a `u64`.
 pub const MAX_DOMAINS: usize = 63;
 
+/// The contact points a domain holds at least by default
+/// ([`PgsSettings::domain_points`](crate::PgsSettings::domain_points)).
+pub const DOMAIN_POINTS: usize = 1100;
+
+/// The domains of an island of `points` contact points: `points / domain_points`, at least 4
+/// (two side by side in each phase of an iteration) and at most `most`; `most` itself for
+/// `domain_points` 0. The count depends on the island alone, never on the threads.
+pub(crate) fn domains_for(points: usize, most: usize, domain_points: usize) -> usize {
+    match domain_points {
+        0 => most,
+        per => (points / per).max(4).min(most),
+    }
+}
+
 /// The parts of an island (buffers reused from one build to the next).
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Partition {
@@ -285,6 +299,24 @@ impl Partition {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_island_gets_a_domain_per_domain_points_at_least_four_at_most_the_setting() {
+        for (points, want) in [
+            (0, 4),
+            (2048, 4),
+            (5260, 4),
+            (8800, 8),
+            (17_600, 16),
+            (99_999, 16),
+        ] {
+            assert_eq!(domains_for(points, 16, 1100), want, "{points} points");
+        }
+        // Fewer than four asked for: that many; points a domain 0: always the setting.
+        assert_eq!(domains_for(50_000, 2, 1100), 2);
+        assert_eq!(domains_for(100, 16, 0), 16);
+        assert_eq!(domains_for(100, 3, 0), 3);
+    }
 
     #[test]
     fn a_chain_is_cut_into_balanced_domains_with_one_seam_body_between_neighbours() {
