@@ -76,11 +76,12 @@ pub struct PgsSettings {
     /// count; the ∞ and contact norms, the impulses and the velocities are bit-identical to
     /// the unchunked sweep, only `Σ Δλ²` (the L2 norm) is summed in another order.
     pub parallel_min_points: usize,
-    /// Domains of the domain plan for islands of [`parallel_min_points`](Self::parallel_min_points)
-    /// points or more (default 16; 0: the chunked plan instead; more than 63 count as 63, and
-    /// the registry refuses them). The island's movable bodies are layered by a breadth-first
-    /// walk of their contacts and cut into this many bands of layers holding about as many
-    /// manifolds each, each band's manifolds swept as an island of its own; a manifold's
+    /// The most domains of the domain plan for islands of
+    /// [`parallel_min_points`](Self::parallel_min_points) points or more (default 16; 0: the
+    /// chunked plan instead; more than 63 count as 63, and the registry refuses them). The
+    /// island's movable bodies are layered by a breadth-first walk of their contacts and cut
+    /// into bands of layers holding about as many manifolds each (as many bands as
+    /// [`domain_points`](Self::domain_points) says, up to this), each band's manifolds swept as an island of its own; a manifold's
     /// bodies lie in one band or in two neighbouring ones, so an iteration sweeps the even
     /// bands side by side on threads, then the odd ones, and threads take the bands of a phase
     /// from a queue (a slower thread takes fewer). Up to half the domains, rounded up, work on
