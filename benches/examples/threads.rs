@@ -1,16 +1,16 @@
-//! One big island on several threads: the settled pile (`--seed`, default 12345) of
-//! `--bodies` circles (default 10 000) stepped under the thesis stop rule (cap 1 000, ∞-norm < 1e-4, position cap 250)
-//! from the same snapshot, alternately for `--rounds` rounds: the plain one-thread solvers
+//! One big island on several threads: the settled pile (`--seed`, default 12345) of `--bodies`
+//! circles (default 10 000) stepped under the thesis stop rule (cap 1 000, ∞-norm < 1e-4, position
+//! cap 250) from the same snapshot, alternately for `--rounds` rounds: the plain one-thread solvers
 //! (unchunked sweep, position pass in problem order), and the planned sweeps on 1 thread and on
-//! `--threads` threads (islands side by side; the velocity sweep in the domain plan of
-//! at most `--domains` domains of at least `--domain-points` points each (defaults 16 and
-//! 1 100; `--domain-points 0`: exactly `--domains`), or with `--domains 0` in the chunked
-//! plan; the position pass likewise in domains or, with `--domains 0`, in shared colours), as `simulate
+//! `--threads` threads (islands side by side; the velocity sweep in the domain plan of at most
+//! `--domains` domains of at least `--domain-points` points each (defaults 16 and 1 100;
+//! `--domain-points 0`: exactly `--domains`), or with `--domains 0` in the chunked plan; the
+//! position pass likewise in domains or, with `--domains 0`, in shared colours), as `simulate
 //! --threads` runs. The pile is settled with the chunked plans (the snapshot of the earlier
-//! measurements). Prints ms per step (whole step, velocity solve, the rest) per thread
-//! count and the ratio T threads / 1 thread (of the medians, of each round's pair, and of
-//! the fastest rounds), and checks that every run ends in the same
-//! bits (positions, velocities) whatever the thread count.
+//! measurements). Prints ms per step (whole step, velocity solve, the rest) per thread count and
+//! the ratio T threads / 1 thread (of the medians, of each round's pair, and of the fastest
+//! rounds), and checks that every run ends in the same bits (positions, velocities) whatever the
+//! thread count.
 //!
 //! ```sh
 //! cargo run --release -p deepcontact-benches --example threads
@@ -53,7 +53,8 @@ fn parse() -> Result<Option<Options>, String> {
         if a == "--help" || a == "-h" {
             println!(
                 "usage: threads [--bodies 10000] [--threads 2] [--steps 5] [--settle STEPS] \
-                 [--rounds 3] [--domains 16] [--domain-points 1100] [--seed 12345]  (--settle default: 250 × (bodies / 100)^¼)"
+                 [--rounds 3] [--domains 16] [--domain-points 1100] [--seed 12345]  \
+                 (--settle default: 250 × (bodies / 100)^¼)"
             );
             return Ok(None);
         }

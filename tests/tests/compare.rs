@@ -125,7 +125,6 @@ fn compare_outputs_are_the_same_on_one_two_and_more_threads_than_cores() {
             threads,
             parallel_min_points: 0,
             domains: 0,
-            domain_points: 0,
             chunk: 1,
             ..PgsSettings::default()
         };
@@ -145,7 +144,6 @@ fn compare_outputs_are_the_same_on_one_two_and_more_threads_than_cores() {
             threads,
             parallel_min_points: 0,
             domains: 3,
-            domain_points: 0,
             ..PgsSettings::default()
         };
         assert_eq!(

@@ -134,7 +134,6 @@ fn pgs_plans() -> [(&'static str, PgsSettings); 5] {
             PgsSettings {
                 parallel_min_points: 0,
                 domains: 0,
-                domain_points: 0,
                 chunk: 1,
                 ..d
             },
@@ -144,7 +143,6 @@ fn pgs_plans() -> [(&'static str, PgsSettings); 5] {
             PgsSettings {
                 parallel_min_points: 0,
                 domains: 2,
-                domain_points: 0,
                 ..d
             },
         ),

@@ -25,15 +25,15 @@ pub struct PgsPositionSettings {
     /// islands visit their points in problem order, as Box2D does. The orders give different
     /// (equally valid) Gauss-Seidel results.
     pub parallel_min_points: usize,
-    /// The most domains of the domain plan (default 16; more than 63 count as 63): the
-    /// island's movable bodies cut into bands of a breadth-first walk of their contacts (as
-    /// many as [`domain_points`](Self::domain_points) says, up to this), holding about as many
-    /// points each, as the velocity sweep's ([`PgsSettings::domains`](crate::PgsSettings::domains)).
-    /// Each domain's points are visited in problem order by one thread on poses of its own; the
-    /// even domains side by side, then the odd ones. Up to half the domains, rounded up, work
-    /// on an island. `0`: the coloured plan instead — points coloured greedily so that no two
-    /// of a colour move the same body, visited colour by colour, each colour's points in fixed
-    /// chunks that threads share through atomics (which scales worse).
+    /// The most domains of the domain plan (default 16; more than 63 count as 63): the island's
+    /// movable bodies cut into bands of a breadth-first walk of their contacts (as many as
+    /// [`domain_points`](Self::domain_points) says, up to this), holding about as many points each,
+    /// as the velocity sweep's ([`PgsSettings::domains`](crate::PgsSettings::domains)). Each
+    /// domain's points are visited in problem order by one thread on poses of its own; the even
+    /// domains side by side, then the odd ones. Up to half the domains, rounded up, work on an
+    /// island. `0`: the coloured plan instead — points coloured greedily so that no two of a colour
+    /// move the same body, visited colour by colour, each colour's points in fixed chunks that
+    /// threads share through atomics (which scales worse).
     pub domains: usize,
     /// Contact points a domain holds at least (default 1 100; 0: always
     /// [`domains`](Self::domains)), as the velocity sweep's

@@ -78,16 +78,16 @@ pub struct PgsSettings {
     pub parallel_min_points: usize,
     /// The most domains of the domain plan for islands of
     /// [`parallel_min_points`](Self::parallel_min_points) points or more (default 16; 0: the
-    /// chunked plan instead; more than 63 count as 63, and the registry refuses them). The
-    /// island's movable bodies are layered by a breadth-first walk of their contacts and cut
-    /// into bands of layers holding about as many manifolds each (as many bands as
-    /// [`domain_points`](Self::domain_points) says, up to this), each band's manifolds swept as an island of its own; a manifold's
-    /// bodies lie in one band or in two neighbouring ones, so an iteration sweeps the even
-    /// bands side by side on threads, then the odd ones, and threads take the bands of a phase
-    /// from a queue (a slower thread takes fewer). Up to half the domains, rounded up, work on
-    /// an island. Another Gauss-Seidel order than the unchunked sweep's, so other (equally
-    /// valid) bits; the same bits for any thread count. The chunked plan (`0`) keeps the
-    /// unchunked sweep's bits but shares every colour between threads through atomics, which
+    /// chunked plan instead; more than 63 count as 63, and the registry refuses them). The island's
+    /// movable bodies are layered by a breadth-first walk of their contacts and cut into bands of
+    /// layers holding about as many manifolds each (as many bands as
+    /// [`domain_points`](Self::domain_points) says, up to this), each band's manifolds swept as an
+    /// island of its own; a manifold's bodies lie in one band or in two neighbouring ones, so an
+    /// iteration sweeps the even bands side by side on threads, then the odd ones, and threads take
+    /// the bands of a phase from a queue (a slower thread takes fewer). Up to half the domains,
+    /// rounded up, work on an island. Another Gauss-Seidel order than the unchunked sweep's, so
+    /// other (equally valid) bits; the same bits for any thread count. The chunked plan (`0`) keeps
+    /// the unchunked sweep's bits but shares every colour between threads through atomics, which
     /// scales worse.
     pub domains: usize,
     /// Contact points a domain of the domain plan holds at least (default 1 100; 0: always
@@ -791,14 +791,15 @@ mod tests {
         solve_bits_and_threads(problem, start, settings, stop, arch).0
     }
 
-    /// [`solve_bits_on`], and the threads the sweep ran on ([`PgsSolver::threads_used`]).
-    fn solve_bits_and_threads(
+    /// A solver with `settings` (sweeping with `arch`) after solving `problem` from `start`
+    /// under `stop`, with the impulses, velocities and report of the solve.
+    fn solved(
         problem: &ContactProblem,
         start: &[Impulse],
         settings: PgsSettings,
         stop: &SolverSettings,
         arch: pulp::Arch,
-    ) -> (SolveBits, usize) {
+    ) -> (PgsSolver, Vec<Impulse>, Vec<Velocity>, SolveReport) {
         let mut solver = PgsSolver::with_settings(settings);
         solver.arch = arch;
         let mut imp = start.to_vec();
@@ -807,6 +808,18 @@ mod tests {
         solver
             .solve(problem, stop, &mut imp, &mut vel, &mut report)
             .unwrap();
+        (solver, imp, vel, report)
+    }
+
+    /// [`solve_bits_on`], and the threads the sweep ran on ([`PgsSolver::threads_used`]).
+    fn solve_bits_and_threads(
+        problem: &ContactProblem,
+        start: &[Impulse],
+        settings: PgsSettings,
+        stop: &SolverSettings,
+        arch: pulp::Arch,
+    ) -> (SolveBits, usize) {
+        let (solver, imp, vel, report) = solved(problem, start, settings, stop, arch);
         let l2 = report.residual_l2.iter().map(|r| r.to_bits()).collect();
         let bits = (
             imp.iter()
@@ -960,7 +973,6 @@ mod tests {
                             threads,
                             parallel_min_points: 0,
                             domains: 0,
-                            domain_points: 0,
                             chunk: 1,
                             ..PgsSettings::default()
                         };
@@ -1027,7 +1039,6 @@ mod tests {
                     threads,
                     parallel_min_points: 0,
                     domains,
-                    domain_points: 0,
                     chunk: 1,
                     precision: Precision::F32,
                     ..PgsSettings::default()
@@ -1143,7 +1154,6 @@ mod tests {
                         threads,
                         parallel_min_points,
                         domains,
-                        domain_points: 0,
                         chunk: 1,
                         ..PgsSettings::default()
                     };
@@ -1236,23 +1246,18 @@ mod tests {
         // The pile's island (a few hundred points) in the domain plan with the default
         // `domains` (16) and `domain_points` (1 100): four domains, not sixteen.
         let problem = pile_problem();
-        let start = loaded_start(&problem);
-        let mut solver = PgsSolver::with_settings(PgsSettings {
+        let settings = PgsSettings {
             parallel_min_points: 0,
             ..PgsSettings::default()
-        });
-        let mut imp = start.clone();
-        let mut vel = vec![Velocity::default(); problem.bodies.len()];
-        let mut report = SolveReport::default();
-        solver
-            .solve(
-                &problem,
-                &SolverSettings::default(),
-                &mut imp,
-                &mut vel,
-                &mut report,
-            )
-            .unwrap();
+        };
+        let stop = SolverSettings::default();
+        let (solver, _, _, report) = solved(
+            &problem,
+            &loaded_start(&problem),
+            settings,
+            &stop,
+            pulp::Arch::new(),
+        );
         assert!(
             report.iterations > 1,
             "ran {} iterations",
