@@ -1,0 +1,193 @@
+//! Momentum on Gauss-Seidel sweeps, measured on recorded islands of a pile: how many sweeps
+//! from the carried impulses each variant needs before a sweep changes no impulse by more than
+//! the world's tolerance (1e-4 N·s, its stop rule).
+//!
+//! Variants (one sweep visits every point, friction row then normal row, as the world's PGS):
+//! - `gs`: plain projected Gauss-Seidel, forward sweeps.
+//! - `nncg`: the nonsmooth nonlinear conjugate gradient of Silcowski et al. (2011) on forward
+//!   sweeps: `β = ‖Δ_k‖² / ‖Δ_{k−1}‖²`, restart (no momentum) when `β > 1`, else
+//!   `λ += β p`, `p ← β p + Δ_k`.
+//! - `hb β`: heavy-ball momentum with a fixed `β`, restarted when `‖Δ‖` grows.
+//! - `sym …`: the same on symmetric sweeps (a forward sweep, then a backward one, as one
+//!   iteration: Gauss-Seidel symmetrised, the classical partner of conjugate gradients).
+//!
+//! Each cell prints `sweeps/restarts`; a symmetric iteration counts as two sweeps. The
+//! momentum step is not projected (the next sweep projects), as in the paper.
+//!
+//! ```sh
+//! cargo run --release -p deepcontact-experiments --example momentum_sweeps -- \
+//!     --bodies 1000 --seed 100 --steps 160,200 --cap 40000
+//! ```
+
+use deepcontact_core::math::cross;
+use deepcontact_core::{ContactProblem, Impulse, Real, Velocity};
+use deepcontact_experiments::record::IslandRecorder;
+
+/// The world's stop rule: the largest impulse change of a sweep (N·s).
+const TOLERANCE: Real = 1e-4;
+
+/// How the sweeps are combined.
+#[derive(Debug, Clone, Copy)]
+enum Method {
+    /// Plain sweeps.
+    Plain,
+    /// Nonsmooth nonlinear conjugate gradient.
+    Nncg,
+    /// Heavy ball with this momentum.
+    HeavyBall(Real),
+}
+
+/// An island's impulses (`[tangent, normal]` per point) and the bodies' velocities after them.
+struct State<'a> {
+    problem: &'a ContactProblem,
+    lambda: Vec<Real>,
+    velocity: Vec<Velocity>,
+}
+
+impl<'a> State<'a> {
+    fn new(problem: &'a ContactProblem, start: &[Impulse]) -> Self {
+        let velocity = problem
+            .bodies
+            .iter()
+            .map(|b| Velocity::new(b.linear_velocity, b.angular_velocity))
+            .collect();
+        let mut state = Self {
+            problem,
+            lambda: vec![0.0; 2 * start.len()],
+            velocity,
+        };
+        for (i, s) in start.iter().enumerate() {
+            state.push(2 * i, s.tangent);
+            state.push(2 * i + 1, s.normal);
+        }
+        state
+    }
+
+    /// Adds `y` to row `k`'s impulse (even rows friction, odd rows normal) and moves the
+    /// bodies by it: B along the row's direction, A against it.
+    fn push(&mut self, k: usize, y: Real) {
+        let p = &self.problem.points[k / 2];
+        let dir = if k % 2 == 0 { p.tangent() } else { p.normal };
+        let imp = dir * y;
+        let (a, b) = (p.body_a as usize, p.body_b as usize);
+        let (ba, bb) = (&self.problem.bodies[a], &self.problem.bodies[b]);
+        self.velocity[a].linear -= imp * ba.inv_mass;
+        self.velocity[a].angular -= ba.inv_inertia * cross(&p.r_a, &imp);
+        self.velocity[b].linear += imp * bb.inv_mass;
+        self.velocity[b].angular += bb.inv_inertia * cross(&p.r_b, &imp);
+        self.lambda[k] += y;
+    }
+
+    /// Gauss-Seidel on row `k`; the change is added to `d[k]`.
+    fn relax(&mut self, k: usize, d: &mut [Real]) {
+        let p = &self.problem.points[k / 2];
+        let v = self
+            .problem
+            .relative_velocity_with(k / 2, &self.velocity)
+            .expect("the problem's own point");
+        let old = self.lambda[k];
+        let new = if k % 2 == 0 {
+            let bound = p.friction * self.lambda[k + 1].max(0.0);
+            (old - p.tangent_mass * v.dot(&p.tangent())).clamp(-bound, bound)
+        } else {
+            (old - p.normal_mass * (v.dot(&p.normal) - p.velocity_bias)).max(0.0)
+        };
+        d[k] += new - old;
+        self.push(k, new - old);
+    }
+
+    /// One iteration (a forward sweep, and a backward one if `symmetric`); `d` its changes.
+    fn iterate(&mut self, symmetric: bool, d: &mut [Real]) {
+        d.fill(0.0);
+        for k in 0..self.lambda.len() {
+            self.relax(k, d);
+        }
+        if symmetric {
+            for i in (0..self.lambda.len() / 2).rev() {
+                self.relax(2 * i + 1, d);
+                self.relax(2 * i, d);
+            }
+        }
+    }
+}
+
+/// Sweeps from `start` until an iteration changes no impulse by `TOLERANCE` or more (`cap`
+/// iterations at most): `(sweeps, restarts)`, or `None` at the cap.
+fn sweeps_to_tolerance(
+    problem: &ContactProblem,
+    start: &[Impulse],
+    method: Method,
+    symmetric: bool,
+    cap: u32,
+) -> Option<(u32, u32)> {
+    let mut state = State::new(problem, start);
+    let n = state.lambda.len();
+    let (mut d, mut p) = (vec![0.0; n], vec![0.0; n]);
+    let (mut previous, mut restarts) = (Real::INFINITY, 0);
+    let per = if symmetric { 2 } else { 1 };
+    for it in 1..=cap {
+        state.iterate(symmetric, &mut d);
+        if d.iter().all(|x| x.abs() < TOLERANCE) {
+            return Some((per * it, restarts));
+        }
+        let norm: Real = d.iter().map(|x| x * x).sum();
+        let beta = match method {
+            Method::Plain => continue,
+            Method::Nncg => norm / previous,
+            Method::HeavyBall(b) if norm <= previous => b,
+            Method::HeavyBall(_) => Real::INFINITY,
+        };
+        previous = norm;
+        if beta > 1.0 {
+            restarts += u32::from(it > 1);
+            p.copy_from_slice(&d);
+            continue;
+        }
+        for (k, (pk, dk)) in p.iter_mut().zip(&d).enumerate() {
+            let step = beta * *pk;
+            state.push(k, step);
+            *pk = step + dk;
+        }
+    }
+    None
+}
+
+fn main() {
+    let mut args = std::env::args().skip(1);
+    let (mut bodies, mut seed, mut steps, mut cap) = (1000, 100, vec![160, 200], 40_000);
+    while let Some(flag) = args.next() {
+        let value = args.next().unwrap_or_else(|| panic!("{flag} needs a value"));
+        match flag.as_str() {
+            "--bodies" => bodies = value.parse().expect("--bodies: a count"),
+            "--seed" => seed = value.parse().expect("--seed: an integer"),
+            "--steps" => {
+                steps = value
+                    .split(',')
+                    .map(|s| s.parse().expect("--steps: step numbers"))
+                    .collect()
+            }
+            "--cap" => cap = value.parse().expect("--cap: a count"),
+            other => panic!("unknown flag {other} (--bodies, --seed, --steps, --cap)"),
+        }
+    }
+    let islands = IslandRecorder::record_pile(seed, bodies, &steps).expect("the pile runs");
+    let methods = [
+        ("gs", Method::Plain),
+        ("nncg", Method::Nncg),
+        ("hb 0.5", Method::HeavyBall(0.5)),
+        ("hb 0.8", Method::HeavyBall(0.8)),
+        ("hb 0.9", Method::HeavyBall(0.9)),
+    ];
+    println!("pile of {bodies}, seed {seed}: sweeps/restarts to max |Δλ| < {TOLERANCE} (cap {cap})");
+    for (step, problem, carried) in &islands {
+        print!("step {step}, {} points:", problem.len());
+        for symmetric in [false, true] {
+            for (name, method) in methods {
+                let cell = sweeps_to_tolerance(problem, carried, method, symmetric, cap)
+                    .map_or("cap".into(), |(s, r)| format!("{s}/{r}"));
+                print!(" {}{name} {cell};", if symmetric { "sym " } else { "" });
+            }
+        }
+        println!();
+    }
+}
