@@ -152,25 +152,37 @@ fn sweeps_to_tolerance(
     None
 }
 
-fn main() {
-    let mut args = std::env::args().skip(1);
+/// The options: `--bodies` (1 000), `--seed` (100), `--steps` (160,200), `--cap` (40 000).
+fn parse() -> Result<(usize, u64, Vec<u64>, u32), String> {
     let (mut bodies, mut seed, mut steps, mut cap) = (1000, 100, vec![160, 200], 40_000);
+    let mut args = std::env::args().skip(1);
     while let Some(flag) = args.next() {
-        let value = args.next().unwrap_or_else(|| panic!("{flag} needs a value"));
+        let value = args.next().ok_or(format!("{flag} needs a value"))?;
+        let bad = |what: &str| format!("{flag} {value}: {what}");
         match flag.as_str() {
-            "--bodies" => bodies = value.parse().expect("--bodies: a count"),
-            "--seed" => seed = value.parse().expect("--seed: an integer"),
+            "--bodies" => bodies = value.parse().map_err(|_| bad("a count"))?,
+            "--seed" => seed = value.parse().map_err(|_| bad("an integer"))?,
             "--steps" => {
                 steps = value
                     .split(',')
-                    .map(|s| s.parse().expect("--steps: step numbers"))
-                    .collect()
+                    .map(str::parse)
+                    .collect::<Result<_, _>>()
+                    .map_err(|_| bad("step numbers, comma-separated"))?
             }
-            "--cap" => cap = value.parse().expect("--cap: a count"),
-            other => panic!("unknown flag {other} (--bodies, --seed, --steps, --cap)"),
+            "--cap" => cap = value.parse().map_err(|_| bad("a count"))?,
+            other => {
+                return Err(format!(
+                    "unknown flag {other} (--bodies, --seed, --steps, --cap)"
+                ));
+            }
         }
     }
-    let islands = IslandRecorder::record_pile(seed, bodies, &steps).expect("the pile runs");
+    Ok((bodies, seed, steps, cap))
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let (bodies, seed, steps, cap) = parse()?;
+    let islands = IslandRecorder::record_pile(seed, bodies, &steps)?;
     let methods = [
         ("gs", Method::Plain),
         ("nncg", Method::Nncg),
@@ -178,7 +190,9 @@ fn main() {
         ("hb 0.8", Method::HeavyBall(0.8)),
         ("hb 0.9", Method::HeavyBall(0.9)),
     ];
-    println!("pile of {bodies}, seed {seed}: sweeps/restarts to max |Δλ| < {TOLERANCE} (cap {cap})");
+    println!(
+        "pile of {bodies}, seed {seed}: sweeps/restarts to max |Δλ| < {TOLERANCE} (cap {cap})"
+    );
     for (step, problem, carried) in &islands {
         print!("step {step}, {} points:", problem.len());
         for symmetric in [false, true] {
@@ -190,4 +204,5 @@ fn main() {
         }
         println!();
     }
+    Ok(())
 }
