@@ -10,9 +10,15 @@
 //! - `hb β`: heavy-ball momentum with a fixed `β`, restarted when `‖Δ‖` grows.
 //! - `sym …`: the same on symmetric sweeps (a forward sweep, then a backward one, as one
 //!   iteration: Gauss-Seidel symmetrised, the classical partner of conjugate gradients).
+//! - `extrapolate m/F`: forward sweeps; every `m` sweeps, if the change shrank by a rate
+//!   `ρ < 1` a sweep over those `m` and the last two changes point the same way (cosine above
+//!   0.95), the impulses jump by `min(ρ / (1 − ρ), F)` times the last change (the rest of a
+//!   geometric series along one slow mode); the jump is undone when the next sweep's change is
+//!   larger than the last one before it.
 //!
-//! Each cell prints `sweeps/restarts`; a symmetric iteration counts as two sweeps. The
-//! momentum step is not projected (the next sweep projects), as in the paper.
+//! Each cell prints `sweeps/restarts` (for `extrapolate`: `sweeps/jumps/undone`); a symmetric
+//! iteration counts as two sweeps. The momentum step is not projected (the next sweep
+//! projects), as in the paper.
 //!
 //! ```sh
 //! cargo run --release -p deepcontact-experiments --example momentum_sweeps -- \
@@ -152,6 +158,61 @@ fn sweeps_to_tolerance(
     None
 }
 
+/// Forward sweeps from `start` with a jump along the last change every `every` sweeps (see
+/// the module docs; at most `most` times the change) until the stop rule holds: `(sweeps,
+/// jumps, jumps undone)`, or `None` at the cap.
+fn extrapolated_sweeps(
+    problem: &ContactProblem,
+    start: &[Impulse],
+    every: usize,
+    most: Real,
+    cap: u32,
+) -> Option<(u32, u32, u32)> {
+    let mut state = State::new(problem, start);
+    let n = state.lambda.len();
+    let (mut d, mut last) = (vec![0.0; n], vec![0.0; n]);
+    let (mut saved_lambda, mut saved_velocity) = (state.lambda.clone(), state.velocity.clone());
+    let (mut jumps, mut undone) = (0, 0);
+    let mut norms: Vec<Real> = Vec::with_capacity(every);
+    let mut before_jump: Option<Real> = None;
+    let norm = |v: &[Real]| v.iter().map(|x| x * x).sum::<Real>().sqrt();
+    for it in 1..=cap {
+        last.copy_from_slice(&d);
+        state.iterate(false, &mut d);
+        if d.iter().all(|x| x.abs() < TOLERANCE) {
+            return Some((it, jumps, undone));
+        }
+        let now = norm(&d);
+        if let Some(before) = before_jump.take()
+            && now > before
+        {
+            state.lambda.copy_from_slice(&saved_lambda);
+            state.velocity.copy_from_slice(&saved_velocity);
+            undone += 1;
+            norms.clear();
+            continue;
+        }
+        norms.push(now);
+        if norms.len() < every {
+            continue;
+        }
+        let rho = (now / norms[0]).powf(1.0 / (every as Real - 1.0));
+        let cosine = d.iter().zip(&last).map(|(a, b)| a * b).sum::<Real>() / (now * norm(&last));
+        norms.clear();
+        if rho < 1.0 && cosine > 0.95 {
+            saved_lambda.copy_from_slice(&state.lambda);
+            saved_velocity.copy_from_slice(&state.velocity);
+            before_jump = Some(now);
+            let factor = (rho / (1.0 - rho)).min(most);
+            for (k, dk) in d.iter().enumerate() {
+                state.push(k, factor * dk);
+            }
+            jumps += 1;
+        }
+    }
+    None
+}
+
 /// The options: `--bodies` (1 000), `--seed` (100), `--steps` (160,200), `--cap` (40 000).
 fn parse() -> Result<(usize, u64, Vec<u64>, u32), String> {
     let (mut bodies, mut seed, mut steps, mut cap) = (1000, 100, vec![160, 200], 40_000);
@@ -201,6 +262,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     .map_or("cap".into(), |(s, r)| format!("{s}/{r}"));
                 print!(" {}{name} {cell};", if symmetric { "sym " } else { "" });
             }
+        }
+        for (every, most) in [(10, 10.0), (20, 100.0), (50, 1000.0)] {
+            let cell = extrapolated_sweeps(problem, carried, every, most, cap)
+                .map_or("cap".into(), |(s, j, u)| format!("{s}/{j}/{u}"));
+            print!(" extrapolate {every}/{most} {cell};");
         }
         println!();
     }
