@@ -21,8 +21,8 @@ pub fn register(registry: &mut Registry) {
          bands of their contact graph, the even ones swept side by side on threads, then the \
          odd ones; 0: colours shared in chunks instead; default 16, the most), domain_points=N \
          (a band holds at least N contacts, at least 4 bands; 0: always domains; default 1100), \
-         chunk=N (batches of 4 \
-         contacts per chunk of that colour plan, the unit a thread takes; default 16), \
+         chunk=N (batches of 4 contacts per chunk of that colour plan, the unit a thread takes; \
+         default 16), \
          precision=f64|f32 (f32: the iterations in single precision, 8 contacts per AVX2 \
          register, on the calling thread; default f64)",
         |p| {
