@@ -38,7 +38,9 @@ pub mod rng;
 pub mod scene;
 pub mod scene_file;
 pub mod shape;
+mod shared_collide;
 pub mod solver;
+pub mod threads;
 pub mod warm_start;
 pub mod world;
 

@@ -145,7 +145,7 @@ impl NarrowPhase {
 
 /// The manifolds of `pairs` (bodies posed by `poses`), their points appended to `contacts`
 /// and their ranges (into `contacts`) to `ranges`; `manifolds` is parry's scratch.
-fn collide_pairs(
+pub(crate) fn collide_pairs(
     bodies: &[Body],
     poses: &[Pose],
     pairs: &[(u32, u32)],

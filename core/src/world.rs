@@ -32,6 +32,7 @@ use crate::math::{Pose, Real, Vector, Velocity};
 use crate::narrow_phase::{NarrowPhase, RawContact};
 use crate::problem::{ContactProblem, PointDesc, ProblemBody};
 use crate::report::{SolveReport, StepReport};
+use crate::shared_collide::{SHARED_COLLIDE_MIN_BODIES, SharedCollide};
 use crate::solver::{
     PositionReport, PositionSettings, PositionSolver, SolverSettings, VelocitySolver,
 };
@@ -72,9 +73,12 @@ pub struct WorldSettings {
     /// observation after the last, whatever this is, so results are bit-identical for any
     /// count.
     pub island_threads: usize,
-    /// Threads that share the narrow phase's pairs, each a contiguous share of at least
-    /// [`MIN_PAIRS_PER_THREAD`](crate::narrow_phase::MIN_PAIRS_PER_THREAD) (default 1; at
-    /// least 1). The contacts are the same, in the same order, for any count.
+    /// Threads of the collide stage (default 1; at least 1; no more than the cores used). A
+    /// world of 4 096 bodies or more shares the whole stage out (the broad phase's bounds and
+    /// cell pairs and the narrow phase, in chunks, with helpers started before the bounds); a
+    /// smaller one shares the narrow phase's pairs, each thread a contiguous share of at least
+    /// [`MIN_PAIRS_PER_THREAD`](crate::narrow_phase::MIN_PAIRS_PER_THREAD). The contacts are
+    /// the same, in the same order, for any count.
     pub collide_threads: usize,
     /// A fixed budget of constraint passes per island and step, the provider's own included
     /// (default `None`: the velocity solve runs under [`Self::solver`]'s stop rule alone).
@@ -321,6 +325,8 @@ pub struct World {
     step_index: u64,
     broad: BroadPhase,
     narrow: NarrowPhase,
+    /// The collide stage of a large world on several threads.
+    shared_collide: SharedCollide,
     islands: Islands,
     persistent: Persistent,
     scratch: Scratch,
@@ -607,13 +613,15 @@ impl World {
     /// Broad and narrow phase, then the previous step's impulses matched by contact id.
     fn collide(&mut self, s: &mut Scratch) {
         let prediction = self.settings.prediction;
-        let pairs = self.broad.find_pairs(&self.bodies, prediction);
-        self.narrow.collide_on(
-            &self.bodies,
-            pairs,
-            prediction,
-            self.settings.collide_threads,
-        );
+        let threads = crate::threads::effective_threads(self.settings.collide_threads);
+        if threads > 1 && self.bodies.len() >= SHARED_COLLIDE_MIN_BODIES {
+            self.shared_collide
+                .collide(&self.bodies, prediction, threads, &mut self.narrow);
+        } else {
+            let pairs = self.broad.find_pairs(&self.bodies, prediction);
+            self.narrow
+                .collide_on(&self.bodies, pairs, prediction, threads);
+        }
         self.persistent
             .match_contacts(&self.narrow.contacts, &mut s.matched);
         s.solved.clear();
@@ -1124,7 +1132,35 @@ impl Stage {
 
 #[cfg(test)]
 mod tests {
-    use super::{FORK_MIN_POINTS, Schedule, schedule_sizes};
+    use super::{FORK_MIN_POINTS, Schedule, Scratch, WorldSettings, schedule_sizes};
+    use crate::shared_collide::SHARED_COLLIDE_MIN_BODIES;
+    use crate::shared_collide::tests::{bits, strewn_world};
+
+    #[test]
+    fn a_large_world_shares_its_collide_stage_out_with_the_contacts_of_one_thread() {
+        let collide = |collide_threads| {
+            let settings = WorldSettings {
+                collide_threads,
+                ..WorldSettings::default()
+            };
+            let mut world = strewn_world(3000, 1500, 4, settings);
+            assert!(world.bodies.len() >= SHARED_COLLIDE_MIN_BODIES);
+            let mut s = Scratch::default();
+            world.collide(&mut s);
+            let shared = world.shared_collide.called();
+            (bits(&world.narrow), s.matched.len(), shared)
+        };
+        let (one, matched, shared) = collide(1);
+        assert!(!shared, "one collide thread took the shared stage");
+        assert!(one.1.len() > 1000 && matched == one.0.len());
+        let (two, _, shared) = collide(2);
+        if crate::threads::cores() >= 2 {
+            assert!(shared, "two collide threads did not share the stage");
+        } else {
+            assert_ne!(std::env::var("CI").as_deref(), Ok("true"), "CI on one core");
+        }
+        assert!(one == two);
+    }
 
     /// A solver that shares islands from `from` points over `threads` threads.
     fn shares(from: usize, threads: usize) -> impl Fn(usize) -> usize {

@@ -2,7 +2,6 @@
 //! velocity, a pose, a set of measures) and a queue of phased work items.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering as Mem};
-use std::sync::{Mutex, MutexGuard, OnceLock, PoisonError};
 
 /// Three `f64`s that threads share, as bits in relaxed atomics (plain loads and stores on
 /// x86-64 and AArch64): each is written by one thread within a phase, and [`run_phased`]'s
@@ -32,49 +31,9 @@ impl Cell3 {
     }
 }
 
-/// Spins before a waiting thread yields its core: a `pause` costs tens of cycles on current
-/// x86 cores, so this is a microsecond or so, what a partner finishing its item needs; one
-/// that lost its core is not waited for by spinning.
-const SPINS: u32 = 64;
-
-/// Waits until `ready()` holds: spins briefly, then yields.
-#[inline]
-pub(crate) fn wait_until(ready: impl Fn() -> bool) {
-    let mut spins = 0;
-    while !ready() {
-        if spins < SPINS {
-            spins += 1;
-            std::hint::spin_loop();
-        } else {
-            std::thread::yield_now();
-        }
-    }
-}
-
-/// Marks a run aborted when the thread holding it unwinds from a panic, so that the threads
-/// waiting on it stop waiting and the scope passes the panic on instead of hanging.
-pub(crate) struct AbortOnPanic<'a>(pub(crate) &'a AtomicBool);
-
-impl Drop for AbortOnPanic<'_> {
-    fn drop(&mut self) {
-        if std::thread::panicking() {
-            self.0.store(true, Mem::Release);
-        }
-    }
-}
-
-/// The value behind `m`, also after a thread panicked holding it: that panic already fails the
-/// run (it reaches the caller), and the value is only read to finish it.
-pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(PoisonError::into_inner)
-}
-
-/// Waits until `ready()` holds or the run is `aborted`; `false` when it was aborted.
-#[inline]
-pub(crate) fn wait_unless_aborted(aborted: &AtomicBool, ready: impl Fn() -> bool) -> bool {
-    wait_until(|| aborted.load(Mem::Acquire) || ready());
-    !aborted.load(Mem::Acquire)
-}
+pub(crate) use deepcontact_core::threads::{
+    AbortOnPanic, effective_threads, lock, wait_unless_aborted,
+};
 
 /// Runs iterations of phased work on `threads` threads (≥ 1; the caller is one of them).
 ///
@@ -189,23 +148,6 @@ pub(crate) fn run_phased(
 #[repr(align(128))]
 #[derive(Debug, Default)]
 pub(crate) struct Padded<T>(pub(crate) T);
-
-/// Threads to run for a request of `requested`: no more than the cores this process may
-/// use. The result never depends on it.
-pub(crate) fn effective_threads(requested: usize) -> usize {
-    if requested <= 1 {
-        return 1;
-    }
-    requested.min(cores())
-}
-
-/// The cores this process may use, read once: the standard library reads the CPU affinity
-/// and the cgroup quota files at every call (about ten system calls), and the world asks for
-/// every island of every step.
-fn cores() -> usize {
-    static CORES: OnceLock<usize> = OnceLock::new();
-    *CORES.get_or_init(|| std::thread::available_parallelism().map_or(1, std::num::NonZero::get))
-}
 
 /// The first items of each phase, from each phase's item count: `[0, n0, n0 + n1, …]`.
 pub(crate) fn phase_starts(counts: impl IntoIterator<Item = usize>) -> Vec<usize> {
