@@ -155,6 +155,21 @@ pub(crate) fn bin_body(
     }
 }
 
+/// Reads body `id` for [`cell_pairs`] from per-body AABBs, first cells and kinds.
+#[inline]
+pub(crate) fn cell_body<'a>(
+    aabbs: &'a [Aabb],
+    first: &'a [(i64, i64)],
+    kinds: &'a [BodyKind],
+) -> impl Fn(u32) -> CellBody + 'a {
+    |id| CellBody {
+        aabb: aabbs[id as usize],
+        first: first[id as usize],
+        id,
+        dynamic: kinds[id as usize] == BodyKind::Dynamic,
+    }
+}
+
 /// Overlapping pairs sharing a cell, of the sorted `entries` (whole cells), appended to
 /// `pairs`; `body(id)` reads a body, `cell` is scratch. Each pair is reported once: in the
 /// cell holding the overlap's lower corner. That cell is `(max(xa, xb), max(ya, yb))` of
@@ -375,15 +390,10 @@ impl BroadPhase {
             &mut self.counts,
             &cells,
         );
-        let (aabbs, kinds, first) = (&self.aabbs, &self.kinds, &self.first);
+        let (aabbs, kinds) = (&self.aabbs, &self.kinds);
         cell_pairs(
             &self.entries,
-            |id| CellBody {
-                aabb: aabbs[id as usize],
-                first: first[id as usize],
-                id,
-                dynamic: kinds[id as usize] == BodyKind::Dynamic,
-            },
+            cell_body(aabbs, &self.first, kinds),
             &mut self.cell,
             &mut self.pairs,
         );

@@ -211,36 +211,15 @@ pub(crate) fn collide_pairs(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::body::BodyDesc;
     use crate::broad_phase::BroadPhase;
-    use crate::rng::PortableRng;
-    use crate::scene;
-    use crate::shape::ShapeDesc;
-    use crate::world::{World, WorldSettings};
+    use crate::world::WorldSettings;
 
     #[test]
     fn contacts_are_the_same_bits_in_the_same_order_for_any_thread_count() {
         // A pile (walls, balls) with boxes and balls strewn over it, some overlapping, at
         // random angles: every share boundary falls between pairs of some manifolds.
-        let mut descs = scene::pile(5, 300).unwrap().bodies;
-        let mut rng = PortableRng::new(17);
-        for k in 0..300 {
-            let p = Vector::new(rng.uniform_range(1.0, 29.0), rng.uniform_range(1.0, 29.0));
-            let shape = if k % 2 == 0 {
-                ShapeDesc::Ball {
-                    radius: rng.uniform_range(0.2, 0.9),
-                }
-            } else {
-                ShapeDesc::Cuboid {
-                    half_width: rng.uniform_range(0.2, 0.8),
-                    half_height: rng.uniform_range(0.2, 0.8),
-                }
-            };
-            let mut d = BodyDesc::dynamic(shape, p);
-            d.angle = rng.uniform_range(-3.0, 3.0);
-            descs.push(d);
-        }
-        let world = World::with_bodies(WorldSettings::default(), &descs).unwrap();
+        let world =
+            crate::shared_collide::tests::strewn_world(300, 300, 30.0, 5, WorldSettings::default());
         let mut bp = BroadPhase::new();
         let pairs = bp.find_pairs(world.bodies(), 0.02).to_vec();
         assert!(pairs.len() > 300, "{} pairs", pairs.len());

@@ -33,8 +33,8 @@ use parry2d::query::ContactManifold;
 
 use crate::body::{Body, BodyKind};
 use crate::broad_phase::{
-    Aabb, CellBody, CellBox, bin_body, bound, cell_cuts, cell_pairs, cell_size, large_pairs,
-    sort_entries, sort_pairs,
+    Aabb, CellBody, CellBox, bin_body, bound, cell_body, cell_cuts, cell_pairs, cell_size,
+    large_pairs, sort_entries, sort_pairs,
 };
 use crate::math::Real;
 use crate::narrow_phase::{NarrowPhase, RawContact, collide_pairs};
@@ -55,16 +55,44 @@ const LARGE_CHUNK: usize = 2048;
 /// bodies take less time than a helper takes to start.
 pub(crate) const SHARED_COLLIDE_MIN_BODIES: usize = 4096;
 
-/// What the threads read in a phase: the joined outputs of the phases before.
+/// The bounds of a run of bodies, in body order: per body its AABB, kind, first cell and
+/// parry2d pose; the `(cell, body)` entries and the large bodies.
 #[derive(Debug, Default)]
-struct Joined {
+struct Bounds {
     aabbs: Vec<Aabb>,
     kinds: Vec<BodyKind>,
     first: Vec<(i64, i64)>,
     poses: Vec<Pose>,
-    /// The `(cell, body)` entries, sorted.
     entries: Vec<(u64, u32)>,
     large: Vec<u32>,
+}
+
+impl Bounds {
+    fn clear(&mut self) {
+        self.aabbs.clear();
+        self.kinds.clear();
+        self.first.clear();
+        self.poses.clear();
+        self.entries.clear();
+        self.large.clear();
+    }
+
+    /// Appends `o`'s bodies after these.
+    fn extend(&mut self, o: &Bounds) {
+        self.aabbs.extend_from_slice(&o.aabbs);
+        self.kinds.extend_from_slice(&o.kinds);
+        self.first.extend_from_slice(&o.first);
+        self.poses.extend_from_slice(&o.poses);
+        self.entries.extend_from_slice(&o.entries);
+        self.large.extend_from_slice(&o.large);
+    }
+}
+
+/// What the threads read in a phase: the joined outputs of the phases before.
+#[derive(Debug, Default)]
+struct Joined {
+    /// Every body's bounds, the entries sorted by cell.
+    bounds: Bounds,
     /// Where the cell-pairs chunks cut the entries (from 0 to their count).
     cuts: Vec<usize>,
     /// Chunks of whole cells, then chunks of the large bodies' tests.
@@ -79,12 +107,8 @@ struct Joined {
 /// One chunk's outputs (and its scratch), kept from call to call.
 #[derive(Debug, Default)]
 struct Chunk {
-    aabbs: Vec<Aabb>,
-    kinds: Vec<BodyKind>,
-    first: Vec<(i64, i64)>,
-    poses: Vec<Pose>,
-    entries: Vec<(u64, u32)>,
-    large: Vec<u32>,
+    /// A bounds chunk's bodies, and the box of the cells they cover.
+    bounds: Bounds,
     cells: CellBox,
     cell: Vec<CellBody>,
     pairs: Vec<(u32, u32)>,
@@ -292,14 +316,14 @@ impl Joined {
     /// Cuts the sorted entries into chunks of whole cells and the large bodies' tests into
     /// chunks of the bodies, `buffers` chunks at most in all (`n` bodies).
     fn plan_cell_pairs(&mut self, buffers: usize, n: usize) {
-        self.large_chunks = if self.large.is_empty() {
+        self.large_chunks = if self.bounds.large.is_empty() {
             0
         } else {
             n.div_ceil(LARGE_CHUNK).min(buffers / 2).max(1)
         };
         let room = (buffers - self.large_chunks).max(1);
-        let size = ENTRY_CHUNK.max(self.entries.len().div_ceil(room));
-        cell_cuts(&self.entries, size, &mut self.cuts);
+        let size = ENTRY_CHUNK.max(self.bounds.entries.len().div_ceil(room));
+        cell_cuts(&self.bounds.entries, size, &mut self.cuts);
         // Whole cells may overrun a chunk's size: cuts beyond the room are merged into the
         // last chunk.
         if self.cuts.len() - 1 > room {
@@ -316,25 +340,21 @@ impl Joined {
 fn bounds_chunk(bodies: &[Body], c: usize, margin: Real, inv: Real, chunk: &mut Chunk) {
     let start = c * BODY_CHUNK;
     let end = (start + BODY_CHUNK).min(bodies.len());
-    chunk.aabbs.clear();
-    chunk.poses.clear();
-    chunk.kinds.clear();
-    chunk.first.clear();
-    chunk.entries.clear();
-    chunk.large.clear();
+    let own = &mut chunk.bounds;
+    own.clear();
     chunk.cells = CellBox::default();
     for (i, b) in bodies[start..end].iter().enumerate() {
         let (aabb, pose) = bound(b, margin);
-        chunk.aabbs.push(aabb);
-        chunk.poses.push(pose);
-        chunk.kinds.push(b.kind);
+        own.aabbs.push(aabb);
+        own.poses.push(pose);
+        own.kinds.push(b.kind);
         bin_body(
             (start + i) as u32,
             &aabb,
             inv,
-            &mut chunk.first,
-            &mut chunk.entries,
-            &mut chunk.large,
+            &mut own.first,
+            &mut own.entries,
+            &mut own.large,
             &mut chunk.cells,
         );
     }
@@ -342,25 +362,15 @@ fn bounds_chunk(bodies: &[Body], c: usize, margin: Real, inv: Real, chunk: &mut 
 
 /// The bounds chunks joined in body order, the entries sorted by cell.
 fn join_bounds(joined: &mut Joined, scratch: &mut Scratch, chunks: &[Mutex<&mut Chunk>], n: usize) {
-    joined.aabbs.clear();
-    joined.poses.clear();
-    joined.kinds.clear();
-    joined.first.clear();
-    joined.entries.clear();
-    joined.large.clear();
+    joined.bounds.clear();
     let mut cells = CellBox::default();
     for chunk in &chunks[..n.div_ceil(BODY_CHUNK)] {
         let chunk = lock(chunk);
-        joined.aabbs.extend_from_slice(&chunk.aabbs);
-        joined.poses.extend_from_slice(&chunk.poses);
-        joined.kinds.extend_from_slice(&chunk.kinds);
-        joined.first.extend_from_slice(&chunk.first);
-        joined.entries.extend_from_slice(&chunk.entries);
-        joined.large.extend_from_slice(&chunk.large);
+        joined.bounds.extend(&chunk.bounds);
         cells.merge(&chunk.cells);
     }
     sort_entries(
-        &mut joined.entries,
+        &mut joined.bounds.entries,
         &mut scratch.sorted_entries,
         &mut scratch.counts,
         &cells,
@@ -371,18 +381,14 @@ fn join_bounds(joined: &mut Joined, scratch: &mut Scratch, chunks: &[Mutex<&mut 
 /// bodies with its share of the bodies, or, last, the next call's cell size.
 fn cell_pairs_chunk(joined: &Joined, c: usize, chunk: &mut Chunk) {
     chunk.pairs.clear();
-    let (aabbs, kinds, first) = (&joined.aabbs, &joined.kinds, &joined.first);
+    let b = &joined.bounds;
+    let (aabbs, kinds) = (&b.aabbs, &b.kinds);
     if c == joined.cell_chunks + joined.large_chunks {
         chunk.inv = 1.0 / cell_size(&mut chunk.extents, aabbs.iter());
     } else if c < joined.cell_chunks {
         cell_pairs(
-            &joined.entries[joined.cuts[c]..joined.cuts[c + 1]],
-            |id| CellBody {
-                aabb: aabbs[id as usize],
-                first: first[id as usize],
-                id,
-                dynamic: kinds[id as usize] == BodyKind::Dynamic,
-            },
+            &b.entries[joined.cuts[c]..joined.cuts[c + 1]],
+            cell_body(aabbs, &b.first, kinds),
             &mut chunk.cell,
             &mut chunk.pairs,
         );
@@ -392,7 +398,7 @@ fn cell_pairs_chunk(joined: &Joined, c: usize, chunk: &mut Chunk) {
         let per = n.div_ceil(joined.large_chunks);
         let (start, end) = ((k * per).min(n), ((k + 1) * per).min(n));
         large_pairs(
-            &joined.large,
+            &b.large,
             start as u32..end as u32,
             |i| aabbs[i as usize],
             |i| kinds[i as usize],
@@ -423,7 +429,7 @@ fn manifolds_chunk(bodies: &[Body], joined: &Joined, c: usize, margin: Real, chu
     chunk.ranges.clear();
     collide_pairs(
         bodies,
-        &joined.poses,
+        &joined.bounds.poses,
         &joined.pairs[start..end],
         margin,
         &mut chunk.manifolds,
@@ -448,13 +454,17 @@ pub(crate) mod tests {
     pub(crate) fn strewn_world(
         balls: usize,
         strewn: usize,
+        side: Real,
         seed: u64,
         settings: WorldSettings,
     ) -> World {
         let mut descs = scene::pile(seed, balls).unwrap().bodies;
         let mut rng = PortableRng::new(seed);
         for k in 0..strewn {
-            let p = Vector::new(rng.uniform_range(1.0, 59.0), rng.uniform_range(1.0, 59.0));
+            let p = Vector::new(
+                rng.uniform_range(1.0, side - 1.0),
+                rng.uniform_range(1.0, side - 1.0),
+            );
             let shape = if k % 2 == 0 {
                 ShapeDesc::Ball {
                     radius: rng.uniform_range(0.2, 0.9),
@@ -493,7 +503,7 @@ pub(crate) mod tests {
     fn shared_pairs_and_contacts_are_the_serial_bits_for_any_thread_count() {
         let margin = 0.02;
         for (balls, strewn, seed) in [(3000, 1500, 3), (800, 1400, 8)] {
-            let world = strewn_world(balls, strewn, seed, WorldSettings::default());
+            let world = strewn_world(balls, strewn, 60.0, seed, WorldSettings::default());
             let bodies = world.bodies();
             let mut broad = BroadPhase::new();
             let pairs = broad.find_pairs(bodies, margin).to_vec();
@@ -516,7 +526,7 @@ pub(crate) mod tests {
                 assert_eq!(got, pairs, "{threads} threads");
                 assert!(bits(&narrow) == expected, "{threads} threads");
                 let joined = &shared.joined;
-                assert!(!joined.large.is_empty() && joined.cell_chunks > 1);
+                assert!(!joined.bounds.large.is_empty() && joined.cell_chunks > 1);
                 assert!(joined.pairs.len().div_ceil(joined.pair_chunk) > 1);
                 if threads == 1 {
                     assert_eq!(shared.helped, 0);

@@ -1143,7 +1143,7 @@ mod tests {
                 collide_threads,
                 ..WorldSettings::default()
             };
-            let mut world = strewn_world(3000, 1500, 4, settings);
+            let mut world = strewn_world(3000, 1500, 60.0, 4, settings);
             assert!(world.bodies.len() >= SHARED_COLLIDE_MIN_BODIES);
             let mut s = Scratch::default();
             world.collide(&mut s);
