@@ -110,10 +110,7 @@ pub(crate) fn bound(b: &Body, margin: Real) -> (Aabb, parry2d::math::Pose) {
 
 /// Cell size for `aabbs`: twice the median extent, so a typical body covers 1-4 cells
 /// (`extents`: scratch).
-pub(crate) fn cell_size<'a>(
-    extents: &mut Vec<Real>,
-    aabbs: impl Iterator<Item = &'a Aabb>,
-) -> Real {
+pub(crate) fn cell_size(extents: &mut Vec<Real>, aabbs: impl Iterator<Item = Aabb>) -> Real {
     extents.clear();
     extents.extend(aabbs.map(|a| (a.max - a.min).max()));
     if extents.is_empty() {
@@ -238,7 +235,6 @@ pub(crate) fn large_pairs(
     kind: impl Fn(u32) -> BodyKind,
     pairs: &mut Vec<(u32, u32)>,
 ) {
-    let movable = |i: u32| kind(i) != BodyKind::Static;
     let dynamic = |i: u32| kind(i) == BodyKind::Dynamic;
     for (k, &l) in large.iter().enumerate() {
         let bound = aabb(l);
@@ -246,8 +242,7 @@ pub(crate) fn large_pairs(
             if i == l || large[..k].contains(&i) {
                 continue;
             }
-            if (movable(l) || movable(i)) && (dynamic(l) || dynamic(i)) && bound.overlaps(&aabb(i))
-            {
+            if (dynamic(l) || dynamic(i)) && bound.overlaps(&aabb(i)) {
                 pairs.push((l.min(i), l.max(i)));
             }
         }
@@ -368,7 +363,7 @@ impl BroadPhase {
         if bodies.len() < 2 {
             return &self.pairs;
         }
-        let inv = 1.0 / cell_size(&mut self.extents, self.aabbs.iter());
+        let inv = 1.0 / cell_size(&mut self.extents, self.aabbs.iter().copied());
         self.entries.clear();
         self.large.clear();
         self.first.clear();

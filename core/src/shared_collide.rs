@@ -227,8 +227,8 @@ impl SharedCollide {
         let inv = match self.inv {
             Some(inv) => inv,
             None => {
-                let aabbs: Vec<Aabb> = bodies.iter().map(|b| bound(b, margin).0).collect();
-                1.0 / cell_size(&mut self.scratch.extents, aabbs.iter())
+                let aabbs = bodies.iter().map(|b| bound(b, margin).0);
+                1.0 / cell_size(&mut self.scratch.extents, aabbs)
             }
         };
         // Enough buffers for every bounds chunk and, at the last call's count, every
@@ -384,7 +384,7 @@ fn cell_pairs_chunk(joined: &Joined, c: usize, chunk: &mut Chunk) {
     let b = &joined.bounds;
     let (aabbs, kinds) = (&b.aabbs, &b.kinds);
     if c == joined.cell_chunks + joined.large_chunks {
-        chunk.inv = 1.0 / cell_size(&mut chunk.extents, aabbs.iter());
+        chunk.inv = 1.0 / cell_size(&mut chunk.extents, aabbs.iter().copied());
     } else if c < joined.cell_chunks {
         cell_pairs(
             &b.entries[joined.cuts[c]..joined.cuts[c + 1]],
