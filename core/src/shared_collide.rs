@@ -51,8 +51,9 @@ const LARGE_CHUNK: usize = 2048;
 
 /// Bodies from which [`World`](crate::world::World) shares its collide stage out this way
 /// when it has more than one collide thread (`WorldSettings::collide_threads`); smaller
-/// worlds share the narrow phase alone ([`NarrowPhase::collide_on`]). Chosen, not tuned: the
-/// stage of 4 096 circles takes ≈ 0.7 ms on one thread, several times a helper's start.
+/// worlds share the narrow phase alone ([`NarrowPhase::collide_on`]). Chosen, not tuned: at
+/// 4 200 and 5 000 bodies this stage is no slower than the narrow phase shared alone
+/// (docs/PERFORMANCE.md).
 pub(crate) const SHARED_COLLIDE_MIN_BODIES: usize = 4096;
 
 /// The bounds of a run of bodies, in body order: per body its AABB, kind, first cell and
