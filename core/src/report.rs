@@ -72,6 +72,15 @@ pub struct StepReport {
     pub warm_start_seconds: Real,
     /// Seconds spent in the velocity solver.
     pub solve_seconds: Real,
+    /// Seconds of the collide stage ([`Stage::Collide`](crate::Stage::Collide): broad phase,
+    /// narrow phase, the previous step's impulses matched), wall time.
+    pub collide_seconds: Real,
+    /// Seconds building the islands and their problems
+    /// ([`Stage::Islands`](crate::Stage::Islands)), wall time.
+    pub islands_seconds: Real,
+    /// Seconds of the position pass over every island
+    /// ([`Stage::PositionPass`](crate::Stage::PositionPass)), wall time.
+    pub position_seconds: Real,
     /// Seconds of the whole step.
     pub step_seconds: Real,
     /// Passes over their islands' contact rows that the warm-start provider spent, summed

@@ -565,10 +565,16 @@ impl World {
     ) -> Result<(), CoreError> {
         match stage {
             Stage::IntegrateVelocities => self.integrate_velocities(),
-            Stage::Collide => self.collide(s),
+            Stage::Collide => {
+                let t0 = Instant::now();
+                self.collide(s);
+                report.collide_seconds += t0.elapsed().as_secs_f64();
+            }
             Stage::Islands => {
+                let t0 = Instant::now();
                 self.build_problems(s)?;
                 report.islands = s.problems.len();
+                report.islands_seconds += t0.elapsed().as_secs_f64();
             }
             Stage::SolveIslands => {
                 s.islands.resize_with(s.problems.len(), IslandWork::default);
@@ -592,7 +598,11 @@ impl World {
                 report.finish_islands();
             }
             Stage::IntegratePositions => self.integrate_positions(s),
-            Stage::PositionPass => self.position_pass(s, plugins.position_solver, report)?,
+            Stage::PositionPass => {
+                let t0 = Instant::now();
+                self.position_pass(s, plugins.position_solver, report)?;
+                report.position_seconds += t0.elapsed().as_secs_f64();
+            }
             Stage::StoreImpulses => self.store_impulses(s),
         }
         Ok(())

@@ -73,6 +73,9 @@ class StepReport:
     min_separation: float
     warm_start_seconds: float
     solve_seconds: float
+    collide_seconds: float
+    islands_seconds: float
+    position_seconds: float
     step_seconds: float
 
 class Island:

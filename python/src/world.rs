@@ -89,6 +89,12 @@ pub struct StepReport {
     pub warm_start_seconds: Real,
     /// Seconds in the velocity solver.
     pub solve_seconds: Real,
+    /// Seconds of the collide stage (broad and narrow phase).
+    pub collide_seconds: Real,
+    /// Seconds building the islands and their problems.
+    pub islands_seconds: Real,
+    /// Seconds of the position pass.
+    pub position_seconds: Real,
     /// Seconds of the whole step.
     pub step_seconds: Real,
 }
@@ -112,6 +118,9 @@ impl StepReport {
             min_separation: r.min_separation,
             warm_start_seconds: r.warm_start_seconds,
             solve_seconds: r.solve_seconds,
+            collide_seconds: r.collide_seconds,
+            islands_seconds: r.islands_seconds,
+            position_seconds: r.position_seconds,
             step_seconds: r.step_seconds,
         }
     }

@@ -23,6 +23,9 @@ def test_pile_steps_with_contacts_and_reports(builtin_iterations):
     assert last.residual_curve[-1] < 1e-4 or last.capped_islands > 0
     assert last.natural_residual >= 0.0 and last.fallbacks == 0
     assert last.step_seconds >= last.solve_seconds >= 0.0
+    stages = last.collide_seconds + last.islands_seconds + last.solve_seconds
+    assert last.collide_seconds > 0.0 and last.position_seconds > 0.0
+    assert last.step_seconds >= stages + last.position_seconds + last.warm_start_seconds
 
 
 def test_same_seed_is_bit_identical():

@@ -554,3 +554,39 @@ fn the_start_observed_and_measured_is_the_start_projected_onto_the_friction_cone
         );
     }
 }
+
+#[test]
+fn a_step_report_times_its_stages_within_the_step() {
+    let mut world = build(&scene::pile(12345, 100).unwrap());
+    let mut with_contacts = 0;
+    run(&mut world, &mut CarriedWarmStart, 160, |_, r| {
+        let stages = [
+            ("collide", r.collide_seconds),
+            ("islands", r.islands_seconds),
+            ("warm start", r.warm_start_seconds),
+            ("solve", r.solve_seconds),
+            ("position", r.position_seconds),
+        ];
+        for (stage, seconds) in stages {
+            assert!(seconds >= 0.0, "step {}: {stage} {seconds}", r.step);
+        }
+        assert!(r.collide_seconds > 0.0, "step {}: no collide time", r.step);
+        let sum: Real = stages.iter().map(|s| s.1).sum();
+        assert!(
+            sum <= r.step_seconds,
+            "step {}: stages {sum} s in a step of {} s",
+            r.step,
+            r.step_seconds
+        );
+        if r.contacts > 0 {
+            with_contacts += 1;
+            assert!(
+                r.islands_seconds > 0.0 && r.position_seconds > 0.0,
+                "step {}",
+                r.step
+            );
+        }
+    })
+    .unwrap();
+    assert!(with_contacts > 50, "{with_contacts} steps with contacts");
+}
