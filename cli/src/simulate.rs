@@ -147,6 +147,12 @@ pub fn run(args: SimulateArgs, registry: &Registry) -> Result<(), CliError> {
             totals.capped_steps,
             totals.fallbacks
         );
+        let st = &totals.stages;
+        println!(
+            "ms per step by stage: collide {:.3}, islands {:.3}, warm start {:.3}, velocity solve {:.3}, \
+             position pass {:.3}, rest {:.3} (step {:.3})",
+            st.collide, st.islands, st.warm_start, st.solve, st.position, st.rest, st.step
+        );
     }
     if let Some(path) = &args.render {
         deepcontact_experiments::render::render_world(&world, path)?;

@@ -85,6 +85,60 @@ pub struct Totals {
     pub fallbacks: usize,
     /// Steps that hit the iteration cap.
     pub capped_steps: u64,
+    /// Mean milliseconds per step in each stage, from the step reports.
+    pub stages: StageMs,
+}
+
+/// Mean milliseconds per step in each stage of [`World::step`], from the step reports'
+/// timings (wall time).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StageMs {
+    /// The collide stage: broad phase, narrow phase, the previous impulses matched.
+    pub collide: f64,
+    /// Building the islands and their problems.
+    pub islands: f64,
+    /// The warm-start provider.
+    pub warm_start: f64,
+    /// The velocity solver.
+    pub solve: f64,
+    /// The position pass.
+    pub position: f64,
+    /// The rest of the step: integration, the provider's observations, storing the impulses.
+    pub rest: f64,
+    /// The whole step (the stages above add up to it).
+    pub step: f64,
+}
+
+impl StageMs {
+    /// Adds one step's report (seconds) to the sums (still in seconds until [`Self::mean`]).
+    fn add(&mut self, r: &StepReport) {
+        let timed = r.collide_seconds
+            + r.islands_seconds
+            + r.warm_start_seconds
+            + r.solve_seconds
+            + r.position_seconds;
+        self.collide += r.collide_seconds;
+        self.islands += r.islands_seconds;
+        self.warm_start += r.warm_start_seconds;
+        self.solve += r.solve_seconds;
+        self.position += r.position_seconds;
+        self.rest += (r.step_seconds - timed).max(0.0);
+        self.step += r.step_seconds;
+    }
+
+    /// The sums of `steps` steps as milliseconds per step.
+    fn mean(self, steps: f64) -> Self {
+        let ms = |s: f64| s * 1e3 / steps;
+        Self {
+            collide: ms(self.collide),
+            islands: ms(self.islands),
+            warm_start: ms(self.warm_start),
+            solve: ms(self.solve),
+            position: ms(self.position),
+            rest: ms(self.rest),
+            step: ms(self.step),
+        }
+    }
 }
 
 /// The solver spec `spec` with `threads` threads: `pgs` gains `threads=N` (a `threads` it
@@ -155,6 +209,7 @@ pub fn run_scene(
         contacts += r.contacts as u64;
         point_iters += r.contacts as f64 * f64::from(r.velocity_iterations);
         solve_s += r.solve_seconds;
+        t.stages.add(&r);
         t.fallbacks += r.fallbacks;
         t.capped_steps += u64::from(r.capped_islands > 0);
         each(&r);
@@ -165,6 +220,7 @@ pub fn run_scene(
     t.mean_iterations_late = late as f64 / late_n.max(1) as f64;
     t.mean_contacts = contacts as f64 / n;
     t.ms_per_step = elapsed * 1e3 / n;
+    t.stages = t.stages.mean(n);
     t.ns_per_point_iteration = if point_iters > 0.0 {
         solve_s * 1e9 / point_iters
     } else {

@@ -318,3 +318,35 @@ fn simulate_with_a_lower_position_plan_threshold_is_the_same_on_one_and_two_thre
     assert_eq!(one, two, "1 and 2 threads from 64 points");
     assert_ne!(one, default, "the domain plan did not run");
 }
+
+#[test]
+fn simulate_totals_split_the_step_into_its_stages() {
+    let registry = deepcontact_experiments::full_registry();
+    let config = SimulateConfig {
+        steps: 160,
+        ..SimulateConfig::default()
+    };
+    let (_, totals) = run_scene(&config, &registry, |_| {}).unwrap();
+    let st = totals.stages;
+    assert!(
+        totals.mean_contacts > 30.0,
+        "{} contacts",
+        totals.mean_contacts
+    );
+    for (stage, ms) in [
+        ("collide", st.collide),
+        ("islands", st.islands),
+        ("solve", st.solve),
+        ("position", st.position),
+    ] {
+        assert!(ms > 0.0, "{stage}: {ms} ms");
+    }
+    let sum = st.collide + st.islands + st.warm_start + st.solve + st.position + st.rest;
+    assert!((sum - st.step).abs() <= 1e-9 * st.step.max(1.0), "{st:?}");
+    // The steps are the loop's time but for its bookkeeping.
+    assert!(
+        (0.5 * totals.ms_per_step..=totals.ms_per_step).contains(&st.step),
+        "{st:?} in {} ms",
+        totals.ms_per_step
+    );
+}
