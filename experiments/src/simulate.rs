@@ -103,7 +103,8 @@ pub struct StageMs {
     pub solve: f64,
     /// The position pass.
     pub position: f64,
-    /// The rest of the step: integration, the provider's observations, storing the impulses.
+    /// The rest of the step: the integrations, the solver's set-up of the step, the step's
+    /// measures (penetration, kinetic energy), storing the impulses.
     pub rest: f64,
     /// The whole step (the stages above add up to it).
     pub step: f64,
