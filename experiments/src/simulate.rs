@@ -104,7 +104,7 @@ pub struct StageMs {
     /// The position pass.
     pub position: f64,
     /// The rest of the step: the integrations, the solver's set-up of the step, the step's
-    /// measures (penetration, kinetic energy), storing the impulses.
+    /// measures (start errors, contact errors, kinetic energy), storing the impulses.
     pub rest: f64,
     /// The whole step (the stages above add up to it).
     pub step: f64,
