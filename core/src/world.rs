@@ -544,9 +544,14 @@ impl World {
             position_solver,
         };
         let mut s = std::mem::take(&mut self.scratch);
-        let result = Stage::ORDER
-            .iter()
-            .try_for_each(|&stage| self.run_stage(stage, &mut s, &mut plugins, &mut report));
+        let result = Stage::ORDER.iter().try_for_each(|&stage| {
+            let t0 = Instant::now();
+            self.run_stage(stage, &mut s, &mut plugins, &mut report)?;
+            if let Some(seconds) = stage.timer(&mut report) {
+                *seconds += t0.elapsed().as_secs_f64();
+            }
+            Ok(())
+        });
         self.scratch = s;
         result?;
         self.step_index += 1;
@@ -565,16 +570,10 @@ impl World {
     ) -> Result<(), CoreError> {
         match stage {
             Stage::IntegrateVelocities => self.integrate_velocities(),
-            Stage::Collide => {
-                let t0 = Instant::now();
-                self.collide(s);
-                report.collide_seconds += t0.elapsed().as_secs_f64();
-            }
+            Stage::Collide => self.collide(s),
             Stage::Islands => {
-                let t0 = Instant::now();
                 self.build_problems(s)?;
                 report.islands = s.problems.len();
-                report.islands_seconds += t0.elapsed().as_secs_f64();
             }
             Stage::SolveIslands => {
                 s.islands.resize_with(s.problems.len(), IslandWork::default);
@@ -598,11 +597,7 @@ impl World {
                 report.finish_islands();
             }
             Stage::IntegratePositions => self.integrate_positions(s),
-            Stage::PositionPass => {
-                let t0 = Instant::now();
-                self.position_pass(s, plugins.position_solver, report)?;
-                report.position_seconds += t0.elapsed().as_secs_f64();
-            }
+            Stage::PositionPass => self.position_pass(s, plugins.position_solver, report)?,
             Stage::StoreImpulses => self.store_impulses(s),
         }
         Ok(())
@@ -1138,6 +1133,17 @@ impl Stage {
         Stage::PositionPass,
         Stage::StoreImpulses,
     ];
+
+    /// The field of `report` that times this stage as a whole, if one does (the solve and
+    /// the warm starts are timed inside [`Stage::SolveIslands`]).
+    fn timer(self, report: &mut StepReport) -> Option<&mut Real> {
+        match self {
+            Stage::Collide => Some(&mut report.collide_seconds),
+            Stage::Islands => Some(&mut report.islands_seconds),
+            Stage::PositionPass => Some(&mut report.position_seconds),
+            _ => None,
+        }
+    }
 }
 
 #[cfg(test)]
