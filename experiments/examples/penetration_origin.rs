@@ -12,8 +12,11 @@
 //! ```sh
 //! cargo run --release -p deepcontact-experiments --example penetration_origin -- \
 //!     --scenes pile,box-pile,polygon-pile --budgets 8,16 --seeds 12345..12355 \
-//!     --warm-starts builtin,learned-sor
+//!     --warm-starts builtin,learned-sor [--prediction 0.002]
 //! ```
+//!
+//! `--prediction` keeps points up to that separation (m) as contacts, so that a point is
+//! solved before it touches (the suite's worlds keep touching points only).
 
 use deepcontact_core::{
     Impulse, Observation, Real, WarmStart, WarmStartContext, WarmStartError, WorldSettings,
@@ -92,6 +95,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let seeds = deepcontact_experiments::seeds::parse_seeds(&arg("--seeds", "12345..12355"))?;
     let warm_starts = arg("--warm-starts", "builtin,learned-sor");
     let steps: u64 = arg("--steps", "250").parse()?;
+    // Contacts kept up to this separation (m; the suite's worlds: 0).
+    let prediction: Real = arg("--prediction", "0").parse()?;
     println!(
         "scene | K | warm start | deepest, new points (m) | deepest, held points (m) | deepest: seed, step"
     );
@@ -107,6 +112,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     settings.solver.tolerance = 0.0;
                     settings.position.max_iterations = 3;
                     settings.position.tolerance = 0.0;
+                    settings.prediction = prediction;
                     let mut world = registry.scene_from_spec(scene, seed)?.build(settings)?;
                     let mut origin = Origin {
                         inner: registry.build_provider(spec)?,
