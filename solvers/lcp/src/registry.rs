@@ -28,7 +28,7 @@ fn u32_param(p: &mut Params<'_>, key: &'static str, default: u32) -> Result<u32,
 /// Registers `psor` (`omega=1`, `assembly=auto|dense|sparse`, `dense_threshold=128`),
 /// `newton` (`reg=1e-10`, `assembly`, `dense_threshold`) and `pgs-rescue`
 /// (`trigger=capped|stalled`, `window=100`, `factor=2`, `start=best|iterate|zeros`,
-/// `above=5`, `newton_iterations=20`, `newton_chunk=300`, `newton_progress=0.5`,
+/// `above=10`, `newton_iterations=20`, `newton_chunk=300`, `newton_progress=0.5`,
 /// `newton_tolerance=1e-6`, `escalate=300`, `escalate_above=10`); defaults are
 /// [`PsorSettings::default`], [`NewtonSettings::default`] and [`RescueSettings::default`].
 pub fn register(registry: &mut Registry) {
@@ -101,7 +101,7 @@ fn register_pgs_rescue(registry: &mut Registry) {
         "PGS (default settings), then semismooth Newton on the islands PGS leaves at its cap, \
          kept when its natural residual is lower; trigger=capped|stalled (every capped island, \
          or those whose impulse change did not fall by factor over the last window; default \
-         capped), window=100 (iterations; a cap below two windows is a budget, never rescued), factor=2 (> 1), above=5 (only islands whose natural \
+         capped), window=100 (iterations; a cap below two windows is a budget, never rescued), factor=2 (> 1), above=10 (only islands whose natural \
          residual at the cap is above this multiple of the stop tolerance), start=best|iterate|zeros (Newton \
          from PGS's impulses, from zeros, or from zeros too when the first does not converge; \
          default best), newton_iterations=20 (per start), newton_chunk=300 and newton_progress=0.5 \

@@ -51,9 +51,11 @@ pub struct RescueSettings {
     /// counts as stalled (default 2, > 1); used by [`RescueTrigger::Stalled`].
     pub factor: Real,
     /// A capped island goes to Newton only when PGS's natural residual there is above this
-    /// multiple of the stop tolerance ([`SolverSettings::tolerance`]; default 5, ≥ 0; 0 =
-    /// every capped island the trigger names). Islands PGS leaves close to a solution are
-    /// not worth a Newton solve.
+    /// multiple of the stop tolerance ([`SolverSettings::tolerance`]; default 10, ≥ 0; 0 =
+    /// every capped island the trigger names): with the comparison's 1e-4, the islands PGS
+    /// leaves above 1e-3 N·s. Islands PGS leaves closer to a solution are not worth a Newton
+    /// solve (on the 20-row pyramid and the stack under a heavy box, most of the islands a
+    /// gate at 5 sent to Newton were between 5e-4 and 1e-3 N·s).
     pub above: Real,
     /// Where Newton starts (default [`RescueStart::Best`]).
     pub start: RescueStart,
@@ -94,7 +96,7 @@ impl Default for RescueSettings {
             trigger: RescueTrigger::Capped,
             window: 100,
             factor: 2.0,
-            above: 5.0,
+            above: 10.0,
             start: RescueStart::Best,
             newton_iterations: 20,
             newton_chunk: 300,

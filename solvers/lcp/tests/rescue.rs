@@ -171,6 +171,32 @@ fn a_converging_island_keeps_the_bits_of_plain_pgs() {
     );
 }
 
+/// The gate: a capped island whose natural residual PGS left below `above` × the stop
+/// tolerance keeps PGS's bits and report (no Newton solve); just above it, Newton runs.
+#[test]
+fn a_capped_island_below_the_gate_keeps_the_bits_of_plain_pgs() {
+    let (problem, start) = island(313, 149);
+    let tolerance = SolverSettings::default().tolerance;
+    let (pi, pv, plain) = solve(&mut PgsSolver::new(), &problem, &start);
+    assert!(!plain.converged, "PGS settles the recorded island");
+    let left = plain.natural_residual;
+    let run = |above: f64| {
+        let mut rescue = PgsRescueSolver::with_settings(RescueSettings {
+            above,
+            ..RescueSettings::default()
+        });
+        let (ri, rv, report) = solve(&mut rescue, &problem, &start);
+        (bits(&ri, &rv), report, rescue.stats())
+    };
+    let (kept, report, stats) = run(2.0 * left / tolerance);
+    assert_eq!((stats.capped, stats.attempted), (1, 0), "{stats:?}");
+    assert_eq!(kept, bits(&pi, &pv));
+    assert_eq!(report.natural_residual.to_bits(), left.to_bits());
+    let (_, report, stats) = run(0.5 * left / tolerance);
+    assert_eq!((stats.capped, stats.attempted), (1, 1), "{stats:?}");
+    assert!(report.natural_residual < left);
+}
+
 #[test]
 fn bad_parameters_give_typed_errors() {
     let bad = [
