@@ -106,13 +106,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let (mut new_max, mut held_max, mut deepest) =
                     (0.0 as Real, 0.0 as Real, (0.0, 0, 0));
                 for &seed in &seeds {
-                    let mut settings = WorldSettings::default();
-                    settings.budget = Some(k);
+                    let mut settings = WorldSettings {
+                        budget: Some(k),
+                        prediction,
+                        ..WorldSettings::default()
+                    };
                     settings.solver.max_iterations = k;
                     settings.solver.tolerance = 0.0;
                     settings.position.max_iterations = 3;
                     settings.position.tolerance = 0.0;
-                    settings.prediction = prediction;
                     let mut world = registry.scene_from_spec(scene, seed)?.build(settings)?;
                     let mut origin = Origin {
                         inner: registry.build_provider(spec)?,
