@@ -29,7 +29,7 @@ fn u32_param(p: &mut Params<'_>, key: &'static str, default: u32) -> Result<u32,
 /// `newton` (`reg=1e-10`, `assembly`, `dense_threshold`) and `pgs-rescue`
 /// (`trigger=capped|stalled`, `window=100`, `factor=2`, `start=best|iterate|zeros`,
 /// `above=10`, `newton_iterations=20`, `newton_chunk=300`, `newton_progress=0.5`,
-/// `newton_tolerance=1e-6`, `escalate=300`, `escalate_above=10`); defaults are
+/// `newton_tolerance=1e-6`, `escalate=300`, `escalate_above=10`, `finish=5000`); defaults are
 /// [`PsorSettings::default`], [`NewtonSettings::default`] and [`RescueSettings::default`].
 pub fn register(registry: &mut Registry) {
     register_psor(registry);
@@ -109,7 +109,8 @@ fn register_pgs_rescue(registry: &mut Registry) {
          its value after the chunk before, after the first × PGS's; at least newton_iterations: \
          one solve per start), newton_tolerance=1e-6 (N·s), escalate=300 (when no start converged \
          and the best result is still above escalate_above=10 × the stop tolerance, the starts \
-         again with this cap; 0: none)",
+         again with this cap; 0: none), finish=5000 (PGS iterations from the best result when \
+         the Newton rounds leave the island above escalate_above × the stop tolerance; 0: none)",
         |p| {
             let d = RescueSettings::default();
             let trigger = match p.choice("trigger", &["capped", "stalled"])? {
@@ -127,6 +128,7 @@ fn register_pgs_rescue(registry: &mut Registry) {
             let newton_iterations = u32_param(p, "newton_iterations", d.newton_iterations)?;
             let newton_chunk = u32_param(p, "newton_chunk", d.newton_chunk)?;
             let escalate = u32_param(p, "escalate", d.escalate)?;
+            let finish = u32_param(p, "finish", d.finish)?;
             let settings = RescueSettings {
                 trigger,
                 start,
@@ -139,6 +141,7 @@ fn register_pgs_rescue(registry: &mut Registry) {
                 newton_tolerance: p.f64("newton_tolerance", d.newton_tolerance)?,
                 escalate,
                 escalate_above: p.f64("escalate_above", d.escalate_above)?,
+                finish,
                 ..d
             };
             if let Err(e) = settings.validate() {

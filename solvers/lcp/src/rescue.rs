@@ -86,6 +86,12 @@ pub struct RescueSettings {
     /// longer round [`Self::escalate`] (default 10, ≥ 0: with the comparison's 1e-4, a natural
     /// residual above 1e-3 N·s).
     pub escalate_above: Real,
+    /// PGS iterations from the best result when the Newton rounds leave the island above
+    /// [`Self::escalate_above`] × the stop tolerance, kept when they lower its natural
+    /// residual (default 5 000; 0 = none). On the landing steps of a pyramid of boxes
+    /// semismooth Newton rarely finds a descent direction, while PGS only converges slowly
+    /// there (a few thousand iterations from builtin's start).
+    pub finish: u32,
 }
 
 impl Default for RescueSettings {
@@ -104,6 +110,7 @@ impl Default for RescueSettings {
             newton_tolerance: 1e-6,
             escalate: 300,
             escalate_above: 10.0,
+            finish: 5_000,
         }
     }
 }
@@ -197,6 +204,9 @@ pub struct RescueStats {
     /// Islands whose starts left them above [`RescueSettings::escalate_above`] × the stop
     /// tolerance and that got the longer round of Newton solves.
     pub escalated: u64,
+    /// Islands the Newton rounds left above [`RescueSettings::escalate_above`] × the stop
+    /// tolerance that got [`RescueSettings::finish`] more PGS iterations.
+    pub finished: u64,
     /// Newton iterations, in all.
     pub newton_iterations: u64,
     /// Wall time of the Newton solves (s).
@@ -250,6 +260,7 @@ pub struct PgsRescueSolver {
     trial_impulses: Vec<Impulse>,
     trial_velocities: Vec<Velocity>,
     newton_report: SolveReport,
+    finish_report: SolveReport,
 }
 
 impl Default for PgsRescueSolver {
@@ -276,6 +287,7 @@ impl PgsRescueSolver {
             trial_impulses: Vec::new(),
             trial_velocities: Vec::new(),
             newton_report: SolveReport::default(),
+            finish_report: SolveReport::default(),
         }
     }
 
@@ -412,17 +424,20 @@ impl PgsRescueSolver {
 
     /// Finishes an island PGS left at its cap: Newton from the starts [`RescueStart`] names,
     /// a result kept when its natural residual is below PGS's; when none converged and the
-    /// best result is still above [`RescueSettings::escalate_above`] × `tolerance`, the same
-    /// starts again with the longer cap [`RescueSettings::escalate`].
+    /// best result is still above [`RescueSettings::escalate_above`] × the stop tolerance,
+    /// the same starts again with the longer cap [`RescueSettings::escalate`], and if that
+    /// leaves it there too, [`RescueSettings::finish`] more PGS iterations from the best
+    /// result.
     fn rescue(
         &mut self,
         problem: &ContactProblem,
-        tolerance: Real,
+        settings: &SolverSettings,
         impulses: &mut [Impulse],
         velocities: &mut [Velocity],
         report: &mut SolveReport,
     ) {
         self.stats.attempted += 1;
+        let tolerance = settings.tolerance;
         let pgs_residual = report.natural_residual;
         let mut best = pgs_residual;
         self.saved_impulses.clear();
@@ -439,11 +454,56 @@ impl PgsRescueSolver {
             let cap = self.settings.escalate;
             self.run_starts(problem, cap, &mut best, impulses, velocities, report);
         }
+        if self.settings.finish > 0 && best > self.settings.escalate_above * tolerance {
+            self.finish(problem, settings, &mut best, impulses, velocities, report);
+        }
         report.natural_residual = best;
         if best < pgs_residual {
             self.stats.rescued += 1;
         } else {
             self.stats.fallbacks += 1;
+        }
+    }
+
+    /// [`RescueSettings::finish`] PGS iterations from `impulses` (the best result so far),
+    /// under the stop rule of `settings`; kept when their natural residual is below `best`
+    /// (which it lowers). A failed solve keeps the best result.
+    fn finish(
+        &mut self,
+        problem: &ContactProblem,
+        settings: &SolverSettings,
+        best: &mut Real,
+        impulses: &mut [Impulse],
+        velocities: &mut [Velocity],
+        report: &mut SolveReport,
+    ) {
+        self.stats.finished += 1;
+        self.trial_impulses.clear();
+        self.trial_impulses.extend_from_slice(impulses);
+        self.trial_velocities.clear();
+        self.trial_velocities
+            .resize(velocities.len(), Velocity::default());
+        let stop = SolverSettings {
+            max_iterations: self.settings.finish,
+            ..*settings
+        };
+        let solved = self.pgs.solve(
+            problem,
+            &stop,
+            &mut self.trial_impulses,
+            &mut self.trial_velocities,
+            &mut self.finish_report,
+        );
+        let f = &self.finish_report;
+        report.iterations += f.iterations;
+        report.residual_inf.extend_from_slice(&f.residual_inf);
+        report.residual_l2.extend_from_slice(&f.residual_l2);
+        report.seconds += f.seconds;
+        if solved.is_ok() && f.natural_residual < *best {
+            *best = f.natural_residual;
+            impulses.copy_from_slice(&self.trial_impulses);
+            velocities.copy_from_slice(&self.trial_velocities);
+            report.converged = f.converged;
         }
     }
 
@@ -462,7 +522,7 @@ impl PgsRescueSolver {
         self.pgs
             .solve(problem, settings, impulses, velocities, report)?;
         if self.wants_rescue(settings, report) {
-            self.rescue(problem, settings.tolerance, impulses, velocities, report);
+            self.rescue(problem, settings, impulses, velocities, report);
         }
         Ok(())
     }
@@ -502,7 +562,7 @@ impl VelocitySolver for PgsRescueSolver {
             if island.result.is_ok() && self.wants_rescue(settings, island.report) {
                 self.rescue(
                     island.problem,
-                    settings.tolerance,
+                    settings,
                     island.impulses,
                     island.velocities,
                     island.report,

@@ -7,7 +7,9 @@ use deepcontact_core::{
     CarriedWarmStart, ContactProblem, CoreError, Impulse, IslandSolve, SolveReport, SolverSettings,
     Velocity, VelocitySolver, WorldSettings, scene,
 };
-use deepcontact_lcp::{LcpError, PgsRescueSolver, RescueSettings, RescueStart, stalled};
+use deepcontact_lcp::{
+    LcpError, NewtonSettings, PgsRescueSolver, RescueSettings, RescueStart, stalled,
+};
 use deepcontact_pgs::{PgsPositionSolver, PgsSolver};
 
 /// PGS that keeps a copy of the largest island of each step and its start.
@@ -195,6 +197,62 @@ fn a_capped_island_below_the_gate_keeps_the_bits_of_plain_pgs() {
     let (_, report, stats) = run(0.5 * left / tolerance);
     assert_eq!((stats.capped, stats.attempted), (1, 1), "{stats:?}");
     assert!(report.natural_residual < left);
+}
+
+/// An island PGS converges on in 37 iterations, capped at 20 (two windows of 10) and handed to
+/// one heavily damped Newton step without the longer round: the finishing PGS iterations from the best
+/// result end it converged, below what Newton left; without them it stays there.
+#[test]
+fn an_island_newton_leaves_is_finished_by_more_pgs_iterations() {
+    let (problem, start) = island(313, 60);
+    let (_, _, plain) = solve(&mut PgsSolver::new(), &problem, &start);
+    assert!(plain.converged && plain.iterations > 20, "{plain:?}");
+    let capped = SolverSettings {
+        max_iterations: 20,
+        ..SolverSettings::default()
+    };
+    let run = |finish: u32| {
+        let mut rescue = PgsRescueSolver::with_settings(RescueSettings {
+            window: 10,
+            above: 0.0,
+            // One heavily damped step (a Jacobi step, at the largest regularisation).
+            newton: NewtonSettings {
+                regularization: 100.0,
+                ..NewtonSettings::default()
+            },
+            newton_iterations: 1,
+            escalate: 0,
+            escalate_above: 0.0,
+            finish,
+            ..RescueSettings::default()
+        });
+        let mut impulses = start.clone();
+        let mut velocities = vec![Velocity::default(); problem.bodies.len()];
+        let mut report = SolveReport::default();
+        rescue
+            .solve(
+                &problem,
+                &capped,
+                &mut impulses,
+                &mut velocities,
+                &mut report,
+            )
+            .unwrap();
+        (report, rescue.stats())
+    };
+    let (left, stats) = run(0);
+    assert_eq!((stats.attempted, stats.finished), (1, 0), "{stats:?}");
+    assert!(!left.converged);
+    let (finished, stats) = run(5_000);
+    assert_eq!((stats.attempted, stats.finished), (1, 1), "{stats:?}");
+    assert!(finished.converged, "{finished:?}");
+    assert!(
+        finished.natural_residual < left.natural_residual,
+        "{:e} after the finish, {:e} before",
+        finished.natural_residual,
+        left.natural_residual
+    );
+    assert_eq!(finished.residual_inf.len(), finished.iterations as usize);
 }
 
 #[test]
