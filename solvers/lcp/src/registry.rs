@@ -107,10 +107,10 @@ fn register_pgs_rescue(registry: &mut Registry) {
          default best), newton_iterations=20 (per start), newton_chunk=300 and newton_progress=0.5 \
          (Newton goes on after a chunk only if the natural residual fell below progress × \
          its value after the chunk before, after the first × PGS's; at least newton_iterations: \
-         one solve per start), newton_tolerance=1e-6 (N·s), escalate=300 (when no start converged \
-         and the best result is still above escalate_above=10 × the stop tolerance, the starts \
-         again with this cap; 0: none), finish=5000 (PGS iterations from the best result when \
-         the Newton rounds leave the island above escalate_above × the stop tolerance; 0: none)",
+         one solve per start), newton_tolerance=1e-6 (N·s), finish=5000 (PGS iterations from \
+         the best result when no start converged and it is still above escalate_above=10 × \
+         the stop tolerance; 0: none), escalate=300 (when that leaves it above too, the starts \
+         again with this cap; 0: none)",
         |p| {
             let d = RescueSettings::default();
             let trigger = match p.choice("trigger", &["capped", "stalled"])? {

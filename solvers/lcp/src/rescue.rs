@@ -79,18 +79,20 @@ pub struct RescueSettings {
     pub newton_tolerance: Real,
     /// Iteration cap of a second round of the starts (default 300; 0 = none), run only when no
     /// start converged and the best result's natural residual is still above
-    /// [`Self::escalate_above`] × the stop tolerance: the rare island the short solves leave
-    /// far from a solution gets long ones, the others do not pay for them.
+    /// [`Self::escalate_above`] × the stop tolerance after the [`Self::finish`] iterations:
+    /// the rare island the short solves leave far from a solution gets long ones, the others
+    /// do not pay for them.
     pub escalate: u32,
     /// Multiple of the stop tolerance above which the best result of the starts gets the
     /// longer round [`Self::escalate`] (default 10, ≥ 0: with the comparison's 1e-4, a natural
     /// residual above 1e-3 N·s).
     pub escalate_above: Real,
-    /// PGS iterations from the best result when the Newton rounds leave the island above
-    /// [`Self::escalate_above`] × the stop tolerance, kept when they lower its natural
-    /// residual (default 5 000; 0 = none). On the landing steps of a pyramid of boxes
-    /// semismooth Newton rarely finds a descent direction, while PGS only converges slowly
-    /// there (a few thousand iterations from builtin's start).
+    /// PGS iterations from the best result when the short Newton solves leave the island
+    /// above [`Self::escalate_above`] × the stop tolerance, kept when they lower its natural
+    /// residual, before the longer round [`Self::escalate`] (default 5 000; 0 = none). On the
+    /// landing steps of a pyramid of boxes semismooth Newton rarely finds a descent direction
+    /// (a long round there costs ≈ 2 ms an iteration), while PGS only converges slowly (a few
+    /// thousand iterations from builtin's start, tens of microseconds each).
     pub finish: u32,
 }
 
@@ -201,11 +203,12 @@ pub struct RescueStats {
     pub rescued: u64,
     /// Islands handed to Newton that kept PGS's result (Newton no better, or it failed).
     pub fallbacks: u64,
-    /// Islands whose starts left them above [`RescueSettings::escalate_above`] × the stop
-    /// tolerance and that got the longer round of Newton solves.
+    /// Islands whose starts and finishing PGS iterations left them above
+    /// [`RescueSettings::escalate_above`] × the stop tolerance and that got the longer round
+    /// of Newton solves.
     pub escalated: u64,
-    /// Islands the Newton rounds left above [`RescueSettings::escalate_above`] × the stop
-    /// tolerance that got [`RescueSettings::finish`] more PGS iterations.
+    /// Islands the short Newton solves left above [`RescueSettings::escalate_above`] × the
+    /// stop tolerance that got [`RescueSettings::finish`] more PGS iterations.
     pub finished: u64,
     /// Newton iterations, in all.
     pub newton_iterations: u64,
@@ -239,15 +242,19 @@ pub fn stalled(curve: &[Real], window: usize, factor: Real) -> bool {
 /// natural residual above [`RescueSettings::above`] × the stop tolerance, after at least
 /// `2 ×` [`RescueSettings::window`] iterations (and, with
 /// [`RescueTrigger::Stalled`], whose impulse-change curve stalled) is finished by semismooth
-/// Newton ([`NewtonSolver`]) from PGS's impulses or from zeros ([`RescueStart`]). Newton's
-/// result is kept only when its natural residual is below PGS's; otherwise PGS's impulses
-/// and velocities stay (a counted fallback, [`RescueStats::fallbacks`]).
+/// Newton ([`NewtonSolver`]) from PGS's impulses or from zeros ([`RescueStart`]), then, where
+/// that leaves it above [`RescueSettings::escalate_above`] × the stop tolerance, by more PGS
+/// iterations from the best result ([`RescueSettings::finish`]) and a longer Newton round
+/// ([`RescueSettings::escalate`]). A result is kept only when its natural residual is below
+/// the best so far; when none beats PGS's, PGS's impulses and velocities stay (a counted
+/// fallback, [`RescueStats::fallbacks`]).
 ///
 /// An island PGS settles is untouched: its impulses, velocities and report are the bits of
 /// [`PgsSolver`] alone (islands are handed to [`PgsSolver`]'s own
 /// [`VelocitySolver::solve_many`]). The report of a finished island appends Newton's
 /// iterations and per-iteration impulse changes to PGS's, its natural residual and
-/// `converged` are those of the kept result, and its time includes Newton's.
+/// `converged` are those of the kept result, and its time includes Newton's and the
+/// finishing iterations'.
 #[derive(Debug)]
 pub struct PgsRescueSolver {
     /// Options.
@@ -425,9 +432,9 @@ impl PgsRescueSolver {
     /// Finishes an island PGS left at its cap: Newton from the starts [`RescueStart`] names,
     /// a result kept when its natural residual is below PGS's; when none converged and the
     /// best result is still above [`RescueSettings::escalate_above`] × the stop tolerance,
-    /// the same starts again with the longer cap [`RescueSettings::escalate`], and if that
-    /// leaves it there too, [`RescueSettings::finish`] more PGS iterations from the best
-    /// result.
+    /// [`RescueSettings::finish`] more PGS iterations from the best result, and if that
+    /// leaves it there too, the same starts again with the longer cap
+    /// [`RescueSettings::escalate`].
     fn rescue(
         &mut self,
         problem: &ContactProblem,
@@ -446,16 +453,14 @@ impl PgsRescueSolver {
         self.saved_velocities.extend_from_slice(velocities);
         let cap = self.settings.newton_iterations;
         let converged = self.run_starts(problem, cap, &mut best, impulses, velocities, report);
-        if !converged
-            && self.settings.escalate > 0
-            && best > self.settings.escalate_above * tolerance
-        {
+        let gate = self.settings.escalate_above * tolerance;
+        if !converged && self.settings.finish > 0 && best > gate {
+            self.finish(problem, settings, &mut best, impulses, velocities, report);
+        }
+        if !converged && self.settings.escalate > 0 && best > gate {
             self.stats.escalated += 1;
             let cap = self.settings.escalate;
             self.run_starts(problem, cap, &mut best, impulses, velocities, report);
-        }
-        if self.settings.finish > 0 && best > self.settings.escalate_above * tolerance {
-            self.finish(problem, settings, &mut best, impulses, velocities, report);
         }
         report.natural_residual = best;
         if best < pgs_residual {

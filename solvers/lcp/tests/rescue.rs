@@ -72,13 +72,22 @@ fn solve(
     problem: &ContactProblem,
     start: &[Impulse],
 ) -> (Vec<Impulse>, Vec<Velocity>, SolveReport) {
+    solve_under(solver, problem, start, &SolverSettings::default())
+}
+
+fn solve_under(
+    solver: &mut dyn VelocitySolver,
+    problem: &ContactProblem,
+    start: &[Impulse],
+    settings: &SolverSettings,
+) -> (Vec<Impulse>, Vec<Velocity>, SolveReport) {
     let mut impulses = start.to_vec();
     let mut velocities = vec![Velocity::default(); problem.bodies.len()];
     let mut report = SolveReport::default();
     solver
         .solve(
             problem,
-            &SolverSettings::default(),
+            settings,
             &mut impulses,
             &mut velocities,
             &mut report,
@@ -137,18 +146,7 @@ fn a_fixed_budget_is_not_rescued() {
         ..SolverSettings::default()
     };
     let mut rescue = PgsRescueSolver::new();
-    let mut impulses = start.clone();
-    let mut velocities = vec![Velocity::default(); problem.bodies.len()];
-    let mut report = SolveReport::default();
-    rescue
-        .solve(
-            &problem,
-            &budget,
-            &mut impulses,
-            &mut velocities,
-            &mut report,
-        )
-        .unwrap();
+    let (_, _, report) = solve_under(&mut rescue, &problem, &start, &budget);
     assert!(!report.converged && report.natural_residual > 1e-3);
     assert_eq!(report.iterations, 16);
     let stats = rescue.stats();
@@ -226,18 +224,7 @@ fn an_island_newton_leaves_is_finished_by_more_pgs_iterations() {
             finish,
             ..RescueSettings::default()
         });
-        let mut impulses = start.clone();
-        let mut velocities = vec![Velocity::default(); problem.bodies.len()];
-        let mut report = SolveReport::default();
-        rescue
-            .solve(
-                &problem,
-                &capped,
-                &mut impulses,
-                &mut velocities,
-                &mut report,
-            )
-            .unwrap();
+        let (_, _, report) = solve_under(&mut rescue, &problem, &start, &capped);
         (report, rescue.stats())
     };
     let (left, stats) = run(0);
