@@ -199,9 +199,11 @@ pub struct RescueStats {
     pub skipped: u64,
     /// Islands handed to Newton.
     pub attempted: u64,
-    /// Islands whose Newton result was kept (a lower natural residual than PGS's).
+    /// Islands whose rescue was kept: a result of Newton or of the finishing PGS iterations
+    /// with a lower natural residual than PGS's.
     pub rescued: u64,
-    /// Islands handed to Newton that kept PGS's result (Newton no better, or it failed).
+    /// Islands handed to Newton that kept PGS's result (no later stage did better, or they
+    /// failed).
     pub fallbacks: u64,
     /// Islands whose starts and finishing PGS iterations left them above
     /// [`RescueSettings::escalate_above`] × the stop tolerance and that got the longer round
