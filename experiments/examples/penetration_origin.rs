@@ -3,8 +3,9 @@
 //! held the step before. The suite reports the deepest penetration at the start of a step over
 //! every point; a warm start can only change the second kind.
 //!
-//! Each scene runs under a pass budget as `deepcontact compare --budgets K` runs it (the
-//! solver's tolerance 0 and cap K, the provider's passes counted, 3 position passes), with
+//! Each scene runs under a pass budget as `deepcontact compare --budgets K` runs it
+//! ([`SuiteConfig::cell_config`]: the solver's tolerance 0 and cap K, the provider's passes
+//! counted, 3 position passes), with
 //! each warm start on its own trajectory, and prints per warm start the deepest penetration
 //! (m) over all steps and seeds of the new points and of the held ones, and the overall step
 //! and seed where the deepest one was.
@@ -22,6 +23,7 @@ use deepcontact_core::{
     Impulse, Observation, Real, WarmStart, WarmStartContext, WarmStartError, WorldSettings,
 };
 use deepcontact_experiments::full_registry;
+use deepcontact_experiments::suite::{Budget, SuiteConfig};
 use deepcontact_pgs::PgsPositionSolver;
 
 /// A warm start that measures the depth of its island's points before it hands them to the
@@ -84,6 +86,7 @@ fn arg(flag: &str, default: &str) -> String {
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let registry = full_registry();
+    let suite = SuiteConfig::default();
     let scenes = deepcontact_core::registry::split_spec_list(&arg(
         "--scenes",
         "pile,box-pile,polygon-pile",
@@ -106,15 +109,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let (mut new_max, mut held_max, mut deepest) =
                     (0.0 as Real, 0.0 as Real, (0.0, 0, 0));
                 for &seed in &seeds {
-                    let mut settings = WorldSettings {
-                        budget: Some(k),
+                    // The suite's world under a budget of `k` passes, contacts kept up to `prediction`.
+                    let settings = WorldSettings {
                         prediction,
-                        ..WorldSettings::default()
+                        ..suite.cell_config(scene, Budget::Passes(k)).world
                     };
-                    settings.solver.max_iterations = k;
-                    settings.solver.tolerance = 0.0;
-                    settings.position.max_iterations = 3;
-                    settings.position.tolerance = 0.0;
                     let mut world = registry.scene_from_spec(scene, seed)?.build(settings)?;
                     let mut origin = Origin {
                         inner: registry.build_provider(spec)?,
