@@ -91,8 +91,9 @@ pub struct RescueSettings {
     /// above [`Self::escalate_above`] × the stop tolerance, kept when they lower its natural
     /// residual, before the longer round [`Self::escalate`] (default 5 000; 0 = none). On the
     /// landing steps of a pyramid of boxes semismooth Newton rarely finds a descent direction
-    /// (a long round there costs ≈ 2 ms an iteration), while PGS only converges slowly (a few
-    /// thousand iterations from builtin's start, tens of microseconds each).
+    /// (a long round there costs ≈ 2 ms an iteration: two factorisations and a line search),
+    /// while PGS only converges slowly (a few thousand iterations from builtin's start, each
+    /// one sweep of the island).
     pub finish: u32,
 }
 
