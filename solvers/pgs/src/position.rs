@@ -3,6 +3,7 @@
 mod chunked;
 mod domains;
 mod ordered;
+mod waves;
 
 use deepcontact_core::math::{Pose, Real, Vector, cross, rotate, rotate_sin_cos, sin_cos};
 use deepcontact_core::{
@@ -103,6 +104,8 @@ pub struct PgsPositionSolver {
     domains: crate::position::domains::PositionDomains,
     /// The plain plan's rotation of each body, kept across the pass's iterations.
     rotations: Vec<Rotation>,
+    /// The plain plan's points in waves, four at a time ([`waves`]).
+    waves: crate::position::waves::Waves,
     /// The most threads one island's pass has run on ([`Self::threads_used`]).
     threads_used: usize,
 }
@@ -528,11 +531,17 @@ impl PositionSolver for PgsPositionSolver {
                 poses: &mut *poses,
                 rotations: &mut self.rotations,
             };
+            let in_waves = self.waves.build(&self.rows, cached.poses);
             for it in 0..settings.max_iterations {
-                let mut m = PassMeasures::default();
-                for row in &self.rows {
-                    m.merge(&correct_point(row, settings, &mut cached, false));
-                }
+                let m = if in_waves {
+                    self.waves.iterate(&self.rows, settings, &mut cached)
+                } else {
+                    let mut m = PassMeasures::default();
+                    for row in &self.rows {
+                        m.merge(&correct_point(row, settings, &mut cached, false));
+                    }
+                    m
+                };
                 if m.judge(it, settings, &mut report) {
                     break;
                 }
