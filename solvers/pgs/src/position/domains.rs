@@ -1,14 +1,15 @@
 //! The domain plan of the position pass of a large island, on one thread or several.
 //!
 //! The island is cut into domains ([`Partition`]), as the velocity sweep's; each domain visits its
-//! points in the island's order (no colours: one thread sweeps a domain) on poses of its own,
-//! and [`sweep_parts`] runs the iterations. The pass's measures are minima
+//! points in the island's order (no colours: one thread sweeps a domain; in [`Waves`], which
+//! keep that order's bits) on poses of its own, and [`sweep_parts`] runs the iterations. The pass's measures are minima
 //! and maxima, so only the order of the corrections decides the bits, and that order is the
 //! same for every thread count.
 
 use deepcontact_core::math::Pose;
 use deepcontact_core::{PositionReport, PositionSettings};
 
+use crate::position::waves::Waves;
 use crate::position::{CachedRotations, PassMeasures, PosRow, Rotation, correct_point};
 use crate::threads::domain_sweep::{Part, sweep_parts};
 use crate::threads::partition::Partition;
@@ -24,6 +25,8 @@ pub(crate) struct PositionDomains {
     poses: Vec<Vec<Pose>>,
     /// Per domain, its bodies' last rotations (one per pose).
     rotations: Vec<Vec<Rotation>>,
+    /// Per domain, its points in waves, and whether [`Waves::build`] planned them.
+    waves: Vec<(Waves, bool)>,
     /// Per building thread, each island body's slot in the domain it builds (scratch).
     slots: Vec<Vec<u32>>,
 }
@@ -38,9 +41,15 @@ impl PositionDomains {
         let n = self.partition.n;
         self.rows.resize_with(n, Vec::new);
         self.poses.resize_with(n, Vec::new);
+        self.waves.resize_with(n, Default::default);
         let partition = &self.partition;
-        let items: Vec<_> = self.rows.iter_mut().zip(&mut self.poses).collect();
-        partition.build_parts(items, &mut self.slots, threads, &|p, (list, own), slot| {
+        let items: Vec<_> = self
+            .rows
+            .iter_mut()
+            .zip(&mut self.poses)
+            .zip(&mut self.waves)
+            .collect();
+        let build = |p: usize, ((list, own), waves): Item<'_>, slot: &[u32]| {
             own.clear();
             own.extend(partition.bodies_of[p].iter().map(|&b| poses[b as usize]));
             list.clear();
@@ -50,7 +59,9 @@ impl PositionDomains {
                     .filter(|&(_, &q)| q as usize == p)
                     .map(|(row, _)| row.renumbered(slot)),
             );
-        });
+            waves.1 = waves.0.build(list, own);
+        };
+        partition.build_parts(items, &mut self.slots, threads, &build);
     }
 
     /// Runs the pass on up to `threads` threads (≥ 1; no more than half the domains, rounded up)
@@ -70,11 +81,13 @@ impl PositionDomains {
             .iter()
             .zip(self.poses.iter_mut())
             .zip(self.rotations.iter_mut())
-            .map(|((rows, poses), rotations)| {
+            .zip(&self.waves)
+            .map(|(((rows, poses), rotations), (waves, planned))| {
                 rotations.clear();
                 rotations.resize(poses.len(), Rotation::default());
                 PositionPart {
                     rows,
+                    waves: planned.then_some(waves),
                     poses: CachedRotations { poses, rotations },
                     settings,
                 }
@@ -104,10 +117,18 @@ impl PositionDomains {
     }
 }
 
+/// What [`PositionDomains::build`] fills for one domain: its rows, its poses, its waves.
+type Item<'a> = (
+    (&'a mut Vec<PosRow>, &'a mut Vec<Pose>),
+    &'a mut (Waves, bool),
+);
+
 /// A domain of the pass: its rows and its poses (with their last rotations: a seam body's
 /// pose written by [`Part::set`] keeps the cache right, since it is keyed by the angle).
 struct PositionPart<'a> {
     rows: &'a [PosRow],
+    /// The rows in waves ([`Waves::build`] accepted them).
+    waves: Option<&'a Waves>,
     poses: CachedRotations<'a>,
     settings: &'a PositionSettings,
 }
@@ -128,6 +149,9 @@ impl Part for PositionPart<'_> {
     }
 
     fn sweep(&mut self) -> PassMeasures {
+        if let Some(waves) = self.waves {
+            return waves.iterate(self.rows, self.settings, &mut self.poses);
+        }
         let mut m = PassMeasures::default();
         for row in self.rows {
             m.merge(&correct_point(row, self.settings, &mut self.poses, true));

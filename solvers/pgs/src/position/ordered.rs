@@ -21,6 +21,7 @@ use std::sync::{Mutex, PoisonError};
 use deepcontact_core::math::{Pose, Vector};
 use deepcontact_core::{PositionReport, PositionSettings};
 
+use crate::position::waves::{Waves, levels};
 use crate::position::{CachedRotations, PassMeasures, PosRow, Rotation, correct_point};
 use crate::threads::sync::{AbortOnPanic, Cell3, Padded, lock, wait_unless_aborted};
 
@@ -91,6 +92,9 @@ struct SeamUse {
 struct Plan {
     /// Per thread, its points (indices into the rows), in problem order.
     points: Vec<Vec<u32>>,
+    /// Per thread, its points in the island's waves ([`Waves`]), those with a seam body one
+    /// at a time.
+    waves: Vec<Waves>,
     /// Per point, the seam uses of its bodies (up to two).
     uses: Vec<[Option<SeamUse>; 2]>,
     /// Per seam cell, its body and how many points correct it in one iteration.
@@ -129,6 +133,7 @@ impl Plan {
         let mut cell_of = vec![NONE; poses.len()];
         let mut plan = Plan {
             points: vec![Vec::new(); threads],
+            waves: Vec::with_capacity(threads),
             uses: Vec::with_capacity(rows.len()),
             seams: Vec::new(),
             mover: first_thread
@@ -158,6 +163,23 @@ impl Plan {
                 *count += 1;
             }
             plan.uses.push(uses);
+        }
+        // The waves of the whole island, so that every thread visits its points in one order
+        // that all threads share: the unfinished point earliest in it waits for nothing. With
+        // a negative zero on an immovable body, problem order (a wave a point), one at a time.
+        let (mut latest, mut wave_of) = (Vec::new(), Vec::new());
+        let in_waves = levels(rows, poses, &mut latest, &mut wave_of);
+        if !in_waves {
+            wave_of = (1..=rows.len() as u32).collect();
+        }
+        for points in &plan.points {
+            let mut waves = Waves::default();
+            waves.group(rows, &wave_of, points.iter().copied(), |k| {
+                !in_waves
+                    || rows[k as usize].remeasure
+                    || plan.uses[k as usize].iter().any(Option::is_some)
+            });
+            plan.waves.push(waves);
         }
         plan
     }
@@ -203,26 +225,29 @@ pub(crate) fn solve(
             rotations: &mut rotations,
         };
         for it in 0..settings.max_iterations as usize {
-            let mut m = PassMeasures::default();
-            for &k in &plan.points[t] {
+            let single = |k: u32, own: &mut CachedRotations<'_>| {
                 let uses = &plan.uses[k as usize];
                 for u in uses.iter().flatten() {
                     let cell = &seams[u.cell as usize].0;
                     let want = it as u64 * plan.seams[u.cell as usize].1 + u.before;
                     if !wait_unless_aborted(&aborted, || cell.count.load(Mem::Acquire) == want) {
-                        return local;
+                        return None;
                     }
                     let [x, y, angle] = cell.pose.load();
                     own.poses[u.body as usize] = Pose::new(Vector::new(x, y), angle);
                 }
-                m.merge(&correct_point(&rows[k as usize], settings, &mut own, true));
+                let m = correct_point(&rows[k as usize], settings, own, true);
                 for u in uses.iter().flatten() {
                     let cell = &seams[u.cell as usize].0;
                     let p = own.poses[u.body as usize];
                     cell.pose.store([p.position.x, p.position.y, p.angle]);
                     cell.count.fetch_add(1, Mem::Release);
                 }
-            }
+                Some(m)
+            };
+            let Some(m) = plan.waves[t].iterate_with(settings, &mut own, single) else {
+                return local;
+            };
             *lock(&measures[t]) = m;
             if arrived.0.fetch_add(1, Mem::AcqRel) + 1 == (it + 1) * threads {
                 if judge(&measures, it as u32, settings, &mut lock(&shared_report)) {
@@ -293,7 +318,7 @@ mod tests {
     use crate::position::tests::pile_problem;
 
     #[test]
-    fn ordered_plan_on_two_to_four_threads_has_the_bits_of_one() {
+    fn ordered_plan_on_two_to_four_threads_has_the_bits_of_one_in_waves() {
         let (problem, start) = pile_problem();
         let settings = PositionSettings {
             max_iterations: 60,
@@ -337,6 +362,15 @@ mod tests {
                 plan.points
             );
             assert!(plan.seams.len() >= threads, "{} seams", plan.seams.len());
+            // Every thread corrects points four at a time; on two, half its points or more.
+            for (points, waves) in plan.points.iter().zip(&plan.waves) {
+                assert!(
+                    waves.batched() > 0 && (threads > 2 || 2 * waves.batched() >= points.len()),
+                    "{} of {}",
+                    waves.batched(),
+                    points.len()
+                );
+            }
             let mut poses = start.clone();
             let mut report = PositionReport::default();
             solve(&rows, threads, &settings, &mut poses, &mut report);

@@ -82,73 +82,115 @@ pub(crate) struct Waves {
     /// Indices of the rows corrected one at a time, wave by wave.
     singles: Vec<u32>,
     waves: Vec<Wave>,
-    /// Scratch of the build: each body's latest wave (0: none yet), each point's wave, and
-    /// the points sorted by wave.
+    /// Scratch of the build: each body's latest wave and each point's wave ([`levels`]),
+    /// and the points sorted by wave.
     latest: Vec<u32>,
     wave_of: Vec<u32>,
     by_wave: Vec<u32>,
     starts: Vec<u32>,
 }
 
+/// Each point's wave (from 1) into `wave_of`, for `rows` in problem order on `poses`
+/// (`latest`: scratch); whether no immovable body's pose holds a negative zero (else the
+/// waves must not be used: [module docs](self)).
+pub(crate) fn levels(
+    rows: &[PosRow],
+    poses: &[Pose],
+    latest: &mut Vec<u32>,
+    wave_of: &mut Vec<u32>,
+) -> bool {
+    latest.clear();
+    latest.resize(poses.len(), 0);
+    wave_of.clear();
+    let mut plain = true;
+    for row in rows {
+        let mut wave = 1;
+        for (body, moves) in row.ends() {
+            if moves {
+                wave = wave.max(latest[body as usize] + 1);
+            } else {
+                let p = &poses[body as usize];
+                plain &= ![p.position.x, p.position.y, p.angle]
+                    .iter()
+                    .any(|v| *v == 0.0 && v.is_sign_negative());
+            }
+        }
+        for (body, moves) in row.ends() {
+            if moves {
+                latest[body as usize] = wave;
+            }
+        }
+        wave_of.push(wave);
+    }
+    plain
+}
+
 impl Waves {
-    /// Plans `rows` (an island's points in problem order) on `poses`; `false` (nothing
-    /// planned) where an immovable body's pose holds a negative zero.
+    /// Plans all of `rows` (an island's points in problem order) on `poses`, the circles
+    /// re-measured one at a time; `false` (nothing planned) where an immovable body's pose
+    /// holds a negative zero.
     pub(crate) fn build(&mut self, rows: &[PosRow], poses: &[Pose]) -> bool {
+        let (mut latest, mut wave_of) = (
+            std::mem::take(&mut self.latest),
+            std::mem::take(&mut self.wave_of),
+        );
+        let planned = levels(rows, poses, &mut latest, &mut wave_of);
+        if planned {
+            self.group(rows, &wave_of, 0..rows.len() as u32, |k| {
+                rows[k as usize].remeasure
+            });
+        }
+        (self.latest, self.wave_of) = (latest, wave_of);
+        planned
+    }
+
+    /// Plans `points` (indices into `rows`, in problem order) by their waves `wave_of`
+    /// ([`levels`] over all of `rows`): each wave's points four to a batch, those `single`
+    /// picks and the rest of a wave one at a time.
+    pub(crate) fn group(
+        &mut self,
+        rows: &[PosRow],
+        wave_of: &[u32],
+        points: impl Iterator<Item = u32> + Clone,
+        single: impl Fn(u32) -> bool,
+    ) {
         self.batches.clear();
         self.singles.clear();
         self.waves.clear();
-        self.latest.clear();
-        self.latest.resize(poses.len(), 0);
-        self.wave_of.clear();
-        let mut count = 0;
-        for row in rows {
-            let mut wave = 1;
-            for (body, moves) in row.ends() {
-                if moves {
-                    wave = wave.max(self.latest[body as usize] + 1);
-                } else {
-                    let p = &poses[body as usize];
-                    if [p.position.x, p.position.y, p.angle]
-                        .iter()
-                        .any(|v| *v == 0.0 && v.is_sign_negative())
-                    {
-                        return false;
-                    }
-                }
-            }
-            for (body, moves) in row.ends() {
-                if moves {
-                    self.latest[body as usize] = wave;
-                }
-            }
-            self.wave_of.push(wave);
-            count = count.max(wave);
-        }
-        // The points by wave, in problem order within one (a counting sort).
+        // The points by wave, in problem order within one (a counting sort); waves without
+        // points of this plan are left out.
+        let count = points
+            .clone()
+            .map(|k| wave_of[k as usize])
+            .max()
+            .unwrap_or(0) as usize;
         self.starts.clear();
-        self.starts.resize(count as usize + 2, 0);
-        for &w in &self.wave_of {
-            self.starts[w as usize + 1] += 1;
+        self.starts.resize(count + 2, 0);
+        for k in points.clone() {
+            self.starts[wave_of[k as usize] as usize + 1] += 1;
         }
         for w in 1..self.starts.len() {
             self.starts[w] += self.starts[w - 1];
         }
         self.by_wave.clear();
-        self.by_wave.resize(rows.len(), 0);
-        for (k, &w) in self.wave_of.iter().enumerate() {
-            let at = &mut self.starts[w as usize];
-            self.by_wave[*at as usize] = k as u32;
+        self.by_wave.resize(self.starts[count + 1] as usize, 0);
+        for k in points {
+            let at = &mut self.starts[wave_of[k as usize] as usize];
+            self.by_wave[*at as usize] = k;
             *at += 1;
         }
         // After the sort, `starts[w]` is the end of wave `w`, so wave `w` spans
         // `starts[w - 1] .. starts[w]`.
-        for w in 1..=count as usize {
+        for w in 1..=count {
             let (from, to) = (self.starts[w - 1] as usize, self.starts[w] as usize);
+            if from == to {
+                continue;
+            }
             let batches = self.batches.len() as u32;
             let singles = self.singles.len() as u32;
             let (mut lanes, mut filled) = ([0_u32; LANES], 0);
             for &k in &self.by_wave[from..to] {
-                if rows[k as usize].remeasure {
+                if single(k) {
                     self.singles.push(k);
                 } else {
                     lanes[filled] = k;
@@ -168,7 +210,12 @@ impl Waves {
                 singles: (singles, self.singles.len() as u32),
             });
         }
-        true
+    }
+
+    /// The points planned in batches (tests read it to know the batches ran).
+    #[cfg(test)]
+    pub(crate) fn batched(&self) -> usize {
+        LANES * self.batches.len()
     }
 
     /// One iteration of the pass over `rows` (those [`build`](Self::build) planned), on the
@@ -179,33 +226,55 @@ impl Waves {
         settings: &PositionSettings,
         poses: &mut CachedRotations<'_>,
     ) -> PassMeasures {
+        let one = |k: u32, poses: &mut CachedRotations<'_>| {
+            Some(correct_point(&rows[k as usize], settings, poses, true))
+        };
+        let m = self.iterate_with(settings, poses, one);
+        m.unwrap_or_default()
+    }
+
+    /// One iteration of the planned points: the batches of a wave here, its other points by
+    /// `single` (given the point's index into the rows; `None` ends the iteration early and
+    /// this returns `None`).
+    pub(crate) fn iterate_with<F>(
+        &self,
+        settings: &PositionSettings,
+        poses: &mut CachedRotations<'_>,
+        single: F,
+    ) -> Option<PassMeasures>
+    where
+        F: FnMut(u32, &mut CachedRotations<'_>) -> Option<PassMeasures>,
+    {
         pulp::Arch::new().dispatch(Iterate {
             waves: self,
-            rows,
             settings,
             poses,
+            single,
         })
     }
 }
 
-/// [`Waves::iterate`] as [`pulp::WithSimd`] wants it.
-struct Iterate<'a, 'b, 'c> {
+/// [`Waves::iterate_with`] as [`pulp::WithSimd`] wants it.
+struct Iterate<'a, 'b, 'c, F> {
     waves: &'a Waves,
-    rows: &'a [PosRow],
     settings: &'a PositionSettings,
     poses: &'b mut CachedRotations<'c>,
+    single: F,
 }
 
-impl pulp::WithSimd for Iterate<'_, '_, '_> {
-    type Output = PassMeasures;
+impl<F> pulp::WithSimd for Iterate<'_, '_, '_, F>
+where
+    F: FnMut(u32, &mut CachedRotations<'_>) -> Option<PassMeasures>,
+{
+    type Output = Option<PassMeasures>;
 
     #[inline(always)]
-    fn with_simd<S: pulp::Simd>(self, _simd: S) -> PassMeasures {
+    fn with_simd<S: pulp::Simd>(self, _simd: S) -> Option<PassMeasures> {
         let Iterate {
             waves,
-            rows,
             settings,
             poses,
+            mut single,
         } = self;
         let mut m = PassMeasures::default();
         for wave in &waves.waves {
@@ -213,10 +282,10 @@ impl pulp::WithSimd for Iterate<'_, '_, '_> {
                 correct_batch(batch, settings, poses, &mut m);
             }
             for &k in &waves.singles[wave.singles.0 as usize..wave.singles.1 as usize] {
-                m.merge(&correct_point(&rows[k as usize], settings, poses, true));
+                m.merge(&single(k, poses)?);
             }
         }
-        m
+        Some(m)
     }
 }
 
@@ -374,7 +443,7 @@ mod tests {
             moved |= m.max_impulse > 0.0;
         }
         assert!(moved, "no correction ran");
-        (4 * waves.batches.len()) as f64 / rows.len() as f64
+        waves.batched() as f64 / rows.len() as f64
     }
 
     #[test]
