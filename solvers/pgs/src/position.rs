@@ -88,6 +88,10 @@ impl PgsPositionSettings {
 /// (fixed) normal, the anchors rotating with their bodies (as Box2D v3's relax step does);
 /// circle contacts are re-measured from the centres instead under
 /// [`CircleContact::Remeasured`] (Box2D v2.3).
+///
+/// Points that share no movable body are corrected four at a time where the instruction set
+/// allows (waves of independent points, `position/waves.rs`), with the bits of visiting them
+/// one by one in the plan's order.
 #[derive(Debug, Clone, Default)]
 pub struct PgsPositionSolver {
     /// Options.
@@ -572,12 +576,15 @@ mod tests {
 
     /// The pile's largest island, and the bodies' poses pushed 2 cm down (deeper contacts).
     pub(crate) fn pile_problem() -> (ContactProblem, Vec<Pose>) {
-        let mut world = scene::pile(12345, 100)
-            .unwrap()
-            .build(WorldSettings::default())
-            .unwrap();
+        island(scene::pile(12345, 100).unwrap(), 130)
+    }
+
+    /// The largest island of `scene` after `steps` steps, and its movable bodies' poses pushed
+    /// 2 cm down (deeper contacts, so that every pass corrects).
+    pub(crate) fn island(scene: scene::Scene, steps: usize) -> (ContactProblem, Vec<Pose>) {
+        let mut world = scene.build(WorldSettings::default()).unwrap();
         let (mut s, mut p) = (crate::PgsSolver::new(), PgsPositionSolver::new());
-        for _ in 0..130 {
+        for _ in 0..steps {
             world.step(&mut CarriedWarmStart, &mut s, &mut p).unwrap();
         }
         let problem = world

@@ -373,34 +373,8 @@ fn correct_batch(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use deepcontact_core::{
-        CarriedWarmStart, CircleContact, ContactProblem, WorldSettings, math::Vector, scene,
-    };
-
-    /// The largest island of `scene` after `steps` steps, its movable bodies pushed 2 cm
-    /// down (deeper contacts, so that every iteration corrects).
-    fn island(scene: scene::Scene, steps: usize) -> (ContactProblem, Vec<Pose>) {
-        let mut world = scene.build(WorldSettings::default()).unwrap();
-        let (mut s, mut p) = (crate::PgsSolver::new(), crate::PgsPositionSolver::new());
-        for _ in 0..steps {
-            world.step(&mut CarriedWarmStart, &mut s, &mut p).unwrap();
-        }
-        let problem = world
-            .last_problems()
-            .iter()
-            .max_by_key(|p| p.len())
-            .unwrap()
-            .clone();
-        let poses = problem
-            .bodies
-            .iter()
-            .map(|b| {
-                let drop = if b.inv_mass > 0.0 { 0.02 } else { 0.0 };
-                Pose::new(b.position - Vector::new(0.0, drop), b.angle)
-            })
-            .collect();
-        (problem, poses)
-    }
+    use crate::position::tests::island;
+    use deepcontact_core::{CircleContact, ContactProblem, scene};
 
     fn bits(poses: &[Pose], m: &PassMeasures) -> Vec<u64> {
         poses
