@@ -245,7 +245,22 @@ impl Waves {
     where
         F: FnMut(u32, &mut CachedRotations<'_>) -> Option<PassMeasures>,
     {
-        pulp::Arch::new().dispatch(Iterate {
+        self.iterate_on(pulp::Arch::new(), settings, poses, single)
+    }
+
+    /// [`iterate_with`](Self::iterate_with) compiled for the instruction set `arch` (tests
+    /// compare the detected set with the baseline).
+    fn iterate_on<F>(
+        &self,
+        arch: pulp::Arch,
+        settings: &PositionSettings,
+        poses: &mut CachedRotations<'_>,
+        single: F,
+    ) -> Option<PassMeasures>
+    where
+        F: FnMut(u32, &mut CachedRotations<'_>) -> Option<PassMeasures>,
+    {
+        arch.dispatch(Iterate {
             waves: self,
             settings,
             poses,
@@ -385,16 +400,19 @@ mod tests {
             .collect()
     }
 
-    /// Iterations of the point-by-point loop and of the waves from the same poses, the bits
-    /// of the poses and measures compared after each; the share of the points in batches.
+    /// Iterations of the point-by-point loop and of the waves (on the detected instruction set
+    /// and on the baseline) from the same poses, the bits of the poses and measures compared
+    /// after each; the share of the points in batches.
     fn compare(problem: &ContactProblem, start: &[Pose], settings: &PositionSettings) -> f64 {
         let rows: Vec<PosRow> = (0..problem.points.len())
             .map(|k| PosRow::new(problem, k, settings))
             .collect();
         let mut waves = Waves::default();
         assert!(waves.build(&rows, start), "planned");
-        let (mut plain, mut planned) = (start.to_vec(), start.to_vec());
+        let (mut plain, mut planned, mut baseline) =
+            (start.to_vec(), start.to_vec(), start.to_vec());
         let mut rotations = [
+            vec![Rotation::default(); start.len()],
             vec![Rotation::default(); start.len()],
             vec![Rotation::default(); start.len()],
         ];
@@ -414,6 +432,22 @@ mod tests {
             };
             let w = waves.iterate(&rows, settings, &mut four);
             assert_eq!(bits(&plain, &m), bits(&planned, &w), "iteration {it}");
+            // The same waves compiled for the baseline instruction set (no AVX2).
+            let mut scalar = CachedRotations {
+                poses: &mut baseline,
+                rotations: &mut rotations[2],
+            };
+            let one = |k: u32, poses: &mut CachedRotations<'_>| {
+                Some(correct_point(&rows[k as usize], settings, poses, true))
+            };
+            let b = waves
+                .iterate_on(pulp::Arch::Scalar, settings, &mut scalar, one)
+                .unwrap();
+            assert_eq!(
+                bits(&plain, &m),
+                bits(&baseline, &b),
+                "baseline, iteration {it}"
+            );
             moved |= m.max_impulse > 0.0;
         }
         assert!(moved, "no correction ran");
