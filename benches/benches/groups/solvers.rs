@@ -8,12 +8,17 @@
 //!   1 000 bodies); throughput in contact points;
 //! * `solvers/assembly` — the LCP solvers' set-up: `J`, `M⁻¹` and `W = J M⁻¹ Jᵀ` with `q` for
 //!   every island of the step (dense up to 128 rows, sparse above, as the solvers choose),
-//!   buffers reused across iterations; throughput in contact points.
+//!   buffers reused across iterations; throughput in contact points;
+//! * `solvers/position` — the position pass (`ngs`, one thread) over every island of the step,
+//!   10 iterations from the recorded poses with the movable bodies 2 cm lower (every point
+//!   corrects, none stops early); throughput in point-iterations.
 
 use criterion::{BenchmarkId, Criterion, SamplingMode, Throughput};
 use deepcontact_benches::{SOLVERS, SolveScratch, fixed_iterations, registry};
-use deepcontact_core::SolverSettings;
+use deepcontact_core::math::{Pose, Vector};
+use deepcontact_core::{PositionSettings, PositionSolver, ProblemBody, SolverSettings};
 use deepcontact_lcp::{AssemblyMode, DEFAULT_DENSE_THRESHOLD, Delassus};
+use deepcontact_pgs::PgsPositionSolver;
 
 use super::{settled, sizes};
 
@@ -49,6 +54,7 @@ pub fn bench(c: &mut Criterion) {
     let registry = registry();
     let sizes = sizes();
     assembly(c, &sizes);
+    position(c, &sizes);
     for (name, thesis) in [("solvers/iteration", false), ("solvers/solve", true)] {
         let mut group = c.benchmark_group(name);
         group.sampling_mode(SamplingMode::Flat);
@@ -122,6 +128,61 @@ fn assembly(c: &mut Criterion, sizes: &[usize]) {
         group.throughput(Throughput::Elements(snap.contacts() as u64));
         group.bench_function(BenchmarkId::new("delassus", n), |b| {
             b.iter(|| assemble_all(&mut delassus))
+        });
+    }
+    group.finish();
+}
+
+/// The `solvers/position` group: 10 iterations of the position pass on every island of a
+/// settled pile, its movable bodies pushed 2 cm down.
+fn position(c: &mut Criterion, sizes: &[usize]) {
+    let settings = PositionSettings {
+        max_iterations: 10,
+        tolerance: 0.0,
+        ..PositionSettings::default()
+    };
+    let mut group = c.benchmark_group("solvers/position");
+    group.sampling_mode(SamplingMode::Flat);
+    for &n in sizes {
+        let snap = settled(n);
+        let starts: Vec<Vec<Pose>> = snap
+            .islands
+            .iter()
+            .map(|island| {
+                let drop = Vector::new(0.0, 0.02);
+                let pushed = |b: &ProblemBody| {
+                    let down = if b.inv_mass > 0.0 {
+                        drop
+                    } else {
+                        Vector::zeros()
+                    };
+                    Pose::new(b.position - down, b.angle)
+                };
+                island.problem.bodies.iter().map(pushed).collect()
+            })
+            .collect();
+        let mut pass = PgsPositionSolver::new();
+        let mut poses = starts.clone();
+        let run = |pass: &mut PgsPositionSolver, poses: &mut Vec<Vec<Pose>>| {
+            let mut point_iterations = 0;
+            for ((island, start), poses) in snap.islands.iter().zip(&starts).zip(poses) {
+                poses.clone_from(start);
+                let report = pass
+                    .solve_positions(&island.problem, &settings, poses)
+                    .expect("position pass");
+                point_iterations += island.problem.points.len() as u64 * report.iterations as u64;
+            }
+            point_iterations
+        };
+        let elements = run(&mut pass, &mut poses);
+        assert_eq!(
+            elements,
+            10 * snap.contacts() as u64,
+            "every island ran its 10 iterations"
+        );
+        group.throughput(Throughput::Elements(elements));
+        group.bench_function(BenchmarkId::new("ngs", n), |b| {
+            b.iter(|| run(&mut pass, &mut poses))
         });
     }
     group.finish();
