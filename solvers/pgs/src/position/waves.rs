@@ -1,5 +1,7 @@
-//! The plain plan's pass (points in problem order) on one thread, four points at a time,
-//! with the bits of the point-by-point loop.
+//! An island's points in waves of independent points, corrected four at a time with the bits
+//! of the point-by-point loop: the plain plan's pass, each domain of the domain plan
+//! ([`super::domains`]) and each thread of the ordered plan ([`super::ordered`], the waves of
+//! the whole island, its seam points one at a time).
 //!
 //! A correction reads and writes only its two bodies' poses, so two points that share no
 //! movable body can be corrected in either order with the same result. Each point gets a
@@ -71,7 +73,9 @@ impl Batch {
 /// One wave: its batches, then its points corrected one at a time.
 #[derive(Debug, Clone, Copy, Default)]
 struct Wave {
+    /// Its range in [`Waves::batches`].
     batches: (u32, u32),
+    /// Its range in [`Waves::singles`].
     singles: (u32, u32),
 }
 
