@@ -1,8 +1,10 @@
 //! The plain plan's pass (points in problem order) on several threads, with the bits of one.
 //!
 //! The island's movable bodies are cut into slabs, one a thread; a point belongs to
-//! the slab of its first movable body, and each thread visits its own points in problem
-//! order on a copy of the poses. A movable body that points of two threads move (a seam
+//! the slab of its first movable body, and each thread visits its own points on a copy of the
+//! poses in the island's wave order ([`Waves`]: waves of points that share no movable body,
+//! which keeps every body's corrections in problem order), four at a time where a point moves
+//! no body of another thread. A movable body that points of two threads move (a seam
 //! body) lives in a shared cell with a count of the corrections applied to it. Before a
 //! point corrects a seam body it waits until the count equals the number of points that
 //! correct that body before it in problem order (this iteration's, plus every earlier
@@ -10,10 +12,11 @@
 //! more. So every body sees the corrections of the one-thread order in that order, and every
 //! point reads the poses that order gives it: the same bits for any thread count.
 //!
-//! No thread waits forever: the unfinished point earliest in problem order waits for nothing
-//! (every point before it that shares a body is done), so some thread can always go on. The
-//! threads meet once an iteration, where the last to arrive folds the measures and judges the
-//! stop rule.
+//! No thread waits forever: all threads follow one order (the waves of the whole island, a
+//! wave's points in any order), and the unfinished point earliest in it waits for nothing
+//! (every point that shares a body with it and comes before it in problem order is in an
+//! earlier wave, done), so some thread can always go on. The threads meet once an iteration,
+//! where the last to arrive folds the measures and judges the stop rule.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering as Mem};
 use std::sync::{Mutex, PoisonError};
