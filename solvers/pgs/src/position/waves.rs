@@ -86,6 +86,8 @@ pub(crate) struct Waves {
     /// Indices of the rows corrected one at a time, wave by wave.
     singles: Vec<u32>,
     waves: Vec<Wave>,
+    /// The instruction set the batches are compiled for, detected once a build.
+    arch: pulp::Arch,
     /// Scratch of the build: each body's latest wave and each point's wave ([`levels`]),
     /// and the points sorted by wave.
     latest: Vec<u32>,
@@ -158,6 +160,7 @@ impl Waves {
         points: impl Iterator<Item = u32> + Clone,
         single: impl Fn(u32) -> bool,
     ) {
+        self.arch = pulp::Arch::new();
         self.batches.clear();
         self.singles.clear();
         self.waves.clear();
@@ -249,22 +252,7 @@ impl Waves {
     where
         F: FnMut(u32, &mut CachedRotations<'_>) -> Option<PassMeasures>,
     {
-        self.iterate_on(pulp::Arch::new(), settings, poses, single)
-    }
-
-    /// [`iterate_with`](Self::iterate_with) compiled for the instruction set `arch` (tests
-    /// compare the detected set with the baseline).
-    fn iterate_on<F>(
-        &self,
-        arch: pulp::Arch,
-        settings: &PositionSettings,
-        poses: &mut CachedRotations<'_>,
-        single: F,
-    ) -> Option<PassMeasures>
-    where
-        F: FnMut(u32, &mut CachedRotations<'_>) -> Option<PassMeasures>,
-    {
-        arch.dispatch(Iterate {
+        self.arch.dispatch(Iterate {
             waves: self,
             settings,
             poses,
@@ -413,6 +401,8 @@ mod tests {
             .collect();
         let mut waves = Waves::default();
         assert!(waves.build(&rows, start), "planned");
+        let mut baseline_waves = waves.clone();
+        baseline_waves.arch = pulp::Arch::Scalar;
         let (mut plain, mut planned, mut baseline) =
             (start.to_vec(), start.to_vec(), start.to_vec());
         let mut rotations = [
@@ -444,8 +434,8 @@ mod tests {
             let one = |k: u32, poses: &mut CachedRotations<'_>| {
                 Some(correct_point(&rows[k as usize], settings, poses, true))
             };
-            let b = waves
-                .iterate_on(pulp::Arch::Scalar, settings, &mut scalar, one)
+            let b = baseline_waves
+                .iterate_with(settings, &mut scalar, one)
                 .unwrap();
             assert_eq!(
                 bits(&plain, &m),
