@@ -470,88 +470,114 @@ impl PositionSolver for PgsPositionSolver {
             return Ok(report);
         }
         if problem.points.len() >= self.settings.parallel_min_points {
-            // Bodies in Z-order (so that a domain, or a chunk of a colour, is a patch of
-            // space whose bodies share cache lines).
-            let z = crate::threads::z_order::ZOrder::of(&problem.points);
-            self.bodies.build(&z, &problem.bodies);
-            let new = &self.bodies.new_index;
-            let row = |k: usize| {
-                let mut row = PosRow::new(problem, k, settings);
-                (row.a, row.b) = (new[row.a as usize], new[row.b as usize]);
-                row
-            };
-            self.rows.clear();
-            if self.settings.domains > 0 {
-                self.rows.extend((0..problem.points.len()).map(row));
-            } else {
-                // Points coloured, each colour in Z-order.
-                self.plan.build(problem, &z);
-                self.rows
-                    .extend(self.plan.order().iter().map(|&k| row(k as usize)));
-            }
-            self.renumbered.clear();
-            self.renumbered
-                .extend(self.bodies.body_of.iter().map(|&b| poses[b as usize]));
-            let threads = crate::threads::sync::effective_threads(self.settings.threads);
-            if self.settings.domains > 0 {
-                self.domains.build(
-                    self.settings.domains_for(self.rows.len()),
-                    threads,
-                    &self.rows,
-                    &self.renumbered,
-                );
-                let ran_on =
-                    self.domains
-                        .solve(threads, settings, &mut self.renumbered, &mut report);
-                self.threads_used = self.threads_used.max(ran_on);
-            } else {
-                let ran_on = crate::position::chunked::solve(
-                    &self.rows,
-                    &self.plan,
-                    threads,
-                    settings,
-                    &mut self.renumbered,
-                    &mut report,
-                );
-                self.threads_used = self.threads_used.max(ran_on);
-            }
-            for (&b, pose) in self.bodies.body_of.iter().zip(&self.renumbered) {
-                poses[b as usize] = *pose;
-            }
+            self.solve_large(problem, settings, poses, &mut report);
         } else {
-            self.rows.clear();
-            self.rows
-                .extend((0..problem.points.len()).map(|k| PosRow::new(problem, k, settings)));
-            let threads = crate::threads::sync::effective_threads(self.settings.threads);
-            if threads > 1 && problem.points.len() >= ordered::ORDERED_MIN_POINTS {
-                let ran_on = ordered::solve(&self.rows, threads, settings, poses, &mut report);
-                self.threads_used = self.threads_used.max(ran_on);
-                return finite(poses, report);
-            }
-            self.threads_used = self.threads_used.max(1);
-            self.rotations.clear();
-            self.rotations.resize(poses.len(), Rotation::default());
-            let mut cached = CachedRotations {
-                poses: &mut *poses,
-                rotations: &mut self.rotations,
-            };
-            let in_waves = self.waves.build(&self.rows, cached.poses);
-            for it in 0..settings.max_iterations {
-                let m = if in_waves {
-                    self.waves.iterate(&self.rows, settings, &mut cached)
-                } else {
-                    let mut m = PassMeasures::default();
-                    for row in &self.rows {
-                        m.merge(&correct_point(row, settings, &mut cached, false));
-                    }
-                    m
-                };
-                if m.judge(it, settings, &mut report) {
-                    break;
-                }
-            }
+            self.solve_in_order(problem, settings, poses, &mut report);
         }
         finite(poses, report)
+    }
+}
+
+impl PgsPositionSolver {
+    /// The pass of an island of [`PgsPositionSettings::parallel_min_points`] points or more:
+    /// the domain plan or the coloured plan, on the bodies renumbered in Z-order.
+    fn solve_large(
+        &mut self,
+        problem: &ContactProblem,
+        settings: &PositionSettings,
+        poses: &mut [Pose],
+        report: &mut PositionReport,
+    ) {
+        // Bodies in Z-order (so that a domain, or a chunk of a colour, is a patch of
+        // space whose bodies share cache lines).
+        let z = crate::threads::z_order::ZOrder::of(&problem.points);
+        self.bodies.build(&z, &problem.bodies);
+        let new = &self.bodies.new_index;
+        let row = |k: usize| {
+            let mut row = PosRow::new(problem, k, settings);
+            (row.a, row.b) = (new[row.a as usize], new[row.b as usize]);
+            row
+        };
+        self.rows.clear();
+        if self.settings.domains > 0 {
+            self.rows.extend((0..problem.points.len()).map(row));
+        } else {
+            // Points coloured, each colour in Z-order.
+            self.plan.build(problem, &z);
+            self.rows
+                .extend(self.plan.order().iter().map(|&k| row(k as usize)));
+        }
+        self.renumbered.clear();
+        self.renumbered
+            .extend(self.bodies.body_of.iter().map(|&b| poses[b as usize]));
+        let threads = crate::threads::sync::effective_threads(self.settings.threads);
+        if self.settings.domains > 0 {
+            self.domains.build(
+                self.settings.domains_for(self.rows.len()),
+                threads,
+                &self.rows,
+                &self.renumbered,
+            );
+            let ran_on = self
+                .domains
+                .solve(threads, settings, &mut self.renumbered, report);
+            self.threads_used = self.threads_used.max(ran_on);
+        } else {
+            let ran_on = crate::position::chunked::solve(
+                &self.rows,
+                &self.plan,
+                threads,
+                settings,
+                &mut self.renumbered,
+                report,
+            );
+            self.threads_used = self.threads_used.max(ran_on);
+        }
+        for (&b, pose) in self.bodies.body_of.iter().zip(&self.renumbered) {
+            poses[b as usize] = *pose;
+        }
+    }
+
+    /// The pass of a smaller island in problem order: the ordered plan on several threads,
+    /// else on this thread in waves (or point by point where the waves decline).
+    fn solve_in_order(
+        &mut self,
+        problem: &ContactProblem,
+        settings: &PositionSettings,
+        poses: &mut [Pose],
+        report: &mut PositionReport,
+    ) {
+        self.rows.clear();
+        self.rows
+            .extend((0..problem.points.len()).map(|k| PosRow::new(problem, k, settings)));
+        let threads = crate::threads::sync::effective_threads(self.settings.threads);
+        if threads > 1 && problem.points.len() >= ordered::ORDERED_MIN_POINTS {
+            let ran_on = ordered::solve(&self.rows, threads, settings, poses, report);
+            self.threads_used = self.threads_used.max(ran_on);
+            return;
+        }
+        self.threads_used = self.threads_used.max(1);
+        self.rotations.clear();
+        self.rotations.resize(poses.len(), Rotation::default());
+        let mut cached = CachedRotations {
+            poses: &mut *poses,
+            rotations: &mut self.rotations,
+        };
+        let in_waves = self.waves.build(&self.rows, cached.poses);
+        for it in 0..settings.max_iterations {
+            let m = if in_waves {
+                self.waves.iterate(&self.rows, settings, &mut cached)
+            } else {
+                let mut m = PassMeasures::default();
+                for row in &self.rows {
+                    m.merge(&correct_point(row, settings, &mut cached, false));
+                }
+                m
+            };
+            if m.judge(it, settings, report) {
+                break;
+            }
+        }
     }
 }
 
