@@ -203,12 +203,22 @@ impl Poses for CachedRotations<'_> {
 
     #[inline(always)]
     fn rotate(&mut self, i: usize, v: &Vector, angle: Real) -> Vector {
+        let (s, c) = self.sin_cos(i, angle);
+        rotate_sin_cos(v, s, c)
+    }
+}
+
+impl CachedRotations<'_> {
+    /// `sin_cos(angle)` for a rotation of body `i`, from its cache when the angle's bits are
+    /// those of its last rotation.
+    #[inline(always)]
+    pub(crate) fn sin_cos(&mut self, i: usize, angle: Real) -> (Real, Real) {
         let r = &mut self.rotations[i];
         if r.angle != angle.to_bits() {
             (r.sin, r.cos) = sin_cos(angle);
             r.angle = angle.to_bits();
         }
-        rotate_sin_cos(v, r.sin, r.cos)
+        (r.sin, r.cos)
     }
 }
 

@@ -20,9 +20,9 @@
 //! not planned in waves ([`Waves::build`] returns `false`).
 
 use deepcontact_core::PositionSettings;
-use deepcontact_core::math::{Pose, Real, sin_cos};
+use deepcontact_core::math::{Pose, Real};
 
-use crate::position::{CachedRotations, PassMeasures, PosRow, Rotation, correct_point};
+use crate::position::{CachedRotations, PassMeasures, PosRow, correct_point};
 
 /// Lanes of a batch.
 const LANES: usize = 4;
@@ -296,18 +296,6 @@ where
     }
 }
 
-/// The sine and cosine of `angle` for body `i`, through its [`Rotation`] cache (as
-/// [`CachedRotations`] rotates).
-#[inline(always)]
-fn rotation(rotations: &mut [Rotation], i: usize, angle: Real) -> (Real, Real) {
-    let r = &mut rotations[i];
-    if r.angle != angle.to_bits() {
-        (r.sin, r.cos) = sin_cos(angle);
-        r.angle = angle.to_bits();
-    }
-    (r.sin, r.cos)
-}
-
 /// [`correct_point`] (the fixed-normal case) on the four points of `batch`, lane by lane; the
 /// points share no movable body.
 #[inline(always)]
@@ -330,8 +318,8 @@ fn correct_batch(
     }
     let (mut sa, mut ka, mut sb, mut kb) = ([0.0; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
     for l in 0..LANES {
-        (sa[l], ka[l]) = rotation(poses.rotations, batch.a[l] as usize, ta[l] - batch.ta0[l]);
-        (sb[l], kb[l]) = rotation(poses.rotations, batch.b[l] as usize, tb[l] - batch.tb0[l]);
+        (sa[l], ka[l]) = poses.sin_cos(batch.a[l] as usize, ta[l] - batch.ta0[l]);
+        (sb[l], kb[l]) = poses.sin_cos(batch.b[l] as usize, tb[l] - batch.tb0[l]);
     }
     let mut sep = [0.0; LANES];
     let mut c = [0.0; LANES];
@@ -380,6 +368,7 @@ fn correct_batch(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::position::Rotation;
     use crate::position::tests::island;
     use deepcontact_core::{CircleContact, ContactProblem, scene};
 
