@@ -16,7 +16,7 @@
 //! normal row, and the normal row reloads the batch's fields rather than keeping the friction
 //! row's loads alive across the other batch (see `normal`). A body's `(vx, vy)` moves as one 128-bit load or
 //! store. Together: 0.83–0.94 × the time of a pass at 100 and 1 000 bodies in both
-//! precisions (`pgs_speed`, docs/PERFORMANCE.md).
+//! precisions (`pgs_speed`; CHANGELOG.md, 2026-12-02).
 
 use core::arch::x86_64::{__m128d, __m256d};
 

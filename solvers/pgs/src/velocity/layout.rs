@@ -181,7 +181,7 @@ pub(crate) struct Segment {
 /// Velocity `(vx, vy, ω)` of one body, aligned to 32 bytes (8 of padding): the AVX2 kernel
 /// moves `(vx, vy)` as one 128-bit load or store, which at a 24-byte stride would be
 /// misaligned for every other body and split across two cache lines for one in eight
-/// (aligned: 0.97–0.99 × the `f64` pass, `pgs_speed`; docs/PERFORMANCE.md).
+/// (aligned: 0.97–0.99 × the `f64` pass, `pgs_speed`; CHANGELOG.md, 2026-12-02).
 #[derive(Debug, Clone, Copy, Default)]
 #[repr(C, align(32))]
 pub(crate) struct Vel {
