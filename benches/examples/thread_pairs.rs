@@ -1,0 +1,231 @@
+//! Whole runs on two thread counts, as processes in turns: `deepcontact simulate --json` with
+//! `--threads A` and `--threads B` (default 1 and 2), `--pairs` times (default 12), which one
+//! first alternating from pair to pair, so that a slow spell of the machine touches both. Each
+//! process is timed from its start to its exit (start-up and the report's output included), and
+//! its step reports are hashed without their timing fields (`*_seconds`): every pair must give one
+//! hash on both thread counts, or the run fails. Prints each pair and the medians (smallest–
+//! largest) of B / A: the processes' wall times and the summed `step_seconds`.
+//!
+//! ```sh
+//! cargo build --release --bin deepcontact --example thread_pairs -p deepcontact-benches
+//! target/release/examples/thread_pairs --bodies 10000 --steps 250 --pairs 12
+//! ```
+//!
+//! `--bin PATH` names the binary (default: `deepcontact` beside this example's directory, as
+//! cargo builds both into `target/release`); `--scene`, `--seed` and `--solver` are passed on.
+
+use std::path::PathBuf;
+use std::process::Command;
+use std::time::Instant;
+
+/// Command-line options.
+struct Options {
+    bin: PathBuf,
+    bodies: usize,
+    steps: u64,
+    seed: Option<u64>,
+    scene: Option<String>,
+    solver: Option<String>,
+    threads: [usize; 2],
+    pairs: usize,
+}
+
+/// One process's run: its wall time, the sum of its steps' `step_seconds`, its report hash.
+struct Run {
+    wall: f64,
+    steps: f64,
+    hash: u64,
+}
+
+const USAGE: &str = "usage: thread_pairs [--bin PATH] [--bodies 10000] [--steps 250] \
+                     [--seed S] [--scene NAME] [--solver SPEC] [--threads 1,2] [--pairs 12]";
+
+fn parse() -> Result<Option<Options>, String> {
+    let beside = std::env::current_exe()
+        .ok()
+        .and_then(|exe| Some(exe.parent()?.parent()?.join("deepcontact")))
+        .unwrap_or_else(|| PathBuf::from("target/release/deepcontact"));
+    let mut o = Options {
+        bin: beside,
+        bodies: 10_000,
+        steps: 250,
+        seed: None,
+        scene: None,
+        solver: None,
+        threads: [1, 2],
+        pairs: 12,
+    };
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        if a == "--help" || a == "-h" {
+            println!("{USAGE}");
+            return Ok(None);
+        }
+        let value = args.next().ok_or(format!("{a} needs a value\n{USAGE}"))?;
+        let number = |v: &str| {
+            v.parse::<u64>()
+                .map_err(|e| format!("{a} {v}: {e}\n{USAGE}"))
+        };
+        match a.as_str() {
+            "--bin" => o.bin = PathBuf::from(value),
+            "--bodies" => o.bodies = number(&value)? as usize,
+            "--steps" => o.steps = number(&value)?,
+            "--seed" => o.seed = Some(number(&value)?),
+            "--scene" => o.scene = Some(value),
+            "--solver" => o.solver = Some(value),
+            "--pairs" => o.pairs = number(&value)? as usize,
+            "--threads" => {
+                let counts = value
+                    .split(',')
+                    .map(|t| number(t).map(|t| t as usize))
+                    .collect::<Result<Vec<_>, _>>()?;
+                o.threads = match counts[..] {
+                    [a, b] if a >= 1 && b >= 1 && a != b => [a, b],
+                    _ => return Err(format!("--threads wants two counts A,B: {value}")),
+                };
+            }
+            _ => return Err(format!("unknown option {a}\n{USAGE}")),
+        }
+    }
+    if o.pairs == 0 {
+        return Err("--pairs must be at least 1".into());
+    }
+    if !o.bin.is_file() {
+        return Err(format!(
+            "no binary at {} (build it: cargo build --release --bin deepcontact; or --bin PATH)",
+            o.bin.display()
+        ));
+    }
+    Ok(Some(o))
+}
+
+/// FNV-1a over bytes.
+fn fnv(hash: u64, bytes: &[u8]) -> u64 {
+    bytes.iter().fold(hash, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3)
+    })
+}
+
+/// Runs one process on `threads` threads and reads its step reports.
+fn run(o: &Options, threads: usize) -> Result<Run, String> {
+    let mut cmd = Command::new(&o.bin);
+    cmd.arg("simulate")
+        .args(["--bodies", &o.bodies.to_string()])
+        .args(["--steps", &o.steps.to_string()])
+        .args(["--threads", &threads.to_string(), "--json"]);
+    if let Some(seed) = o.seed {
+        cmd.args(["--seed", &seed.to_string()]);
+    }
+    if let Some(scene) = &o.scene {
+        cmd.args(["--scene", scene]);
+    }
+    if let Some(solver) = &o.solver {
+        cmd.args(["--solver", solver]);
+    }
+    let t0 = Instant::now();
+    let out = cmd
+        .output()
+        .map_err(|e| format!("{}: {e}", o.bin.display()))?;
+    let wall = t0.elapsed().as_secs_f64();
+    if !out.status.success() {
+        return Err(format!(
+            "{:?} failed ({}): {}",
+            cmd,
+            out.status,
+            String::from_utf8_lossy(&out.stderr)
+        ));
+    }
+    let text = String::from_utf8(out.stdout).map_err(|e| format!("report not UTF-8: {e}"))?;
+    let (mut steps, mut hash, mut lines) = (0.0, 0xcbf2_9ce4_8422_2325u64, 0);
+    for line in text.lines().filter(|l| !l.trim().is_empty()) {
+        let mut report: serde_json::Map<String, serde_json::Value> =
+            serde_json::from_str(line).map_err(|e| format!("step report {lines}: {e}"))?;
+        steps += report
+            .get("step_seconds")
+            .and_then(serde_json::Value::as_f64)
+            .ok_or(format!("step report {lines} has no step_seconds"))?;
+        report.retain(|key, _| !key.ends_with("_seconds"));
+        let canonical = serde_json::to_string(&report).map_err(|e| e.to_string())?;
+        hash = fnv(hash, canonical.as_bytes());
+        lines += 1;
+    }
+    if lines as u64 != o.steps {
+        return Err(format!("{lines} step reports for {} steps", o.steps));
+    }
+    Ok(Run { wall, steps, hash })
+}
+
+/// Median, smallest and largest of `v` (not empty).
+fn spread(v: &[f64]) -> (f64, f64, f64) {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let n = s.len();
+    let median = if n % 2 == 1 {
+        s[n / 2]
+    } else {
+        0.5 * (s[n / 2 - 1] + s[n / 2])
+    };
+    (median, s[0], s[n - 1])
+}
+
+fn main() {
+    let o = match parse() {
+        Ok(Some(o)) => o,
+        Ok(None) => return,
+        Err(e) => {
+            eprintln!("{e}");
+            std::process::exit(2);
+        }
+    };
+    let [a, b] = o.threads;
+    println!(
+        "{} simulate --bodies {} --steps {} --json, {a} and {b} threads in turns, {} pairs",
+        o.bin.display(),
+        o.bodies,
+        o.steps,
+        o.pairs
+    );
+    let (mut walls, mut sums, mut hashes) = (Vec::new(), Vec::new(), Vec::<u64>::new());
+    for pair in 0..o.pairs {
+        let order = if pair % 2 == 0 { [a, b] } else { [b, a] };
+        let [first, second] = order.map(|threads| {
+            run(&o, threads).unwrap_or_else(|e| {
+                eprintln!("pair {pair}: {e}");
+                std::process::exit(1);
+            })
+        });
+        let (ra, rb) = if order[0] == a {
+            (&first, &second)
+        } else {
+            (&second, &first)
+        };
+        walls.push(rb.wall / ra.wall);
+        sums.push(rb.steps / ra.steps);
+        println!(
+            "pair {pair:2}: {a} thread(s) {:.3} s, {b} thread(s) {:.3} s, wall {b}/{a} {:.3}, \
+             summed steps {b}/{a} {:.3}, reports {:016x} / {:016x}",
+            ra.wall, rb.wall, walls[pair], sums[pair], ra.hash, rb.hash
+        );
+        if ra.hash != rb.hash {
+            eprintln!(
+                "pair {pair}: the reports differ between {a} and {b} threads (every field but the \
+                 timings should be the same bits)"
+            );
+            std::process::exit(1);
+        }
+        if hashes.first().is_some_and(|&h| h != ra.hash) {
+            eprintln!(
+                "pair {pair}: the reports differ from the first pair's (same seed, same run)"
+            );
+            std::process::exit(1);
+        }
+        hashes.push(ra.hash);
+    }
+    let (wm, wl, wh) = spread(&walls);
+    let (sm, sl, sh) = spread(&sums);
+    println!(
+        "{b} / {a} threads over {} pairs: wall median {wm:.3} ({wl:.3}–{wh:.3}), summed steps \
+         median {sm:.3} ({sl:.3}–{sh:.3}); every report the same bits ({:016x})",
+        o.pairs, hashes[0]
+    );
+}
