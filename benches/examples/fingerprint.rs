@@ -11,14 +11,13 @@
 //! Arguments: bodies (default 100), steps (default 250), seed (default 12345). Thesis settings,
 //! builtin warm start, PGS.
 
+use deepcontact_benches::{FNV_OFFSET, fnv1a};
 use deepcontact_core::{CarriedWarmStart, WorldSettings, scene};
 use deepcontact_pgs::{PgsPositionSolver, PgsSolver};
 
-/// FNV-1a over 64-bit words.
+/// FNV-1a over a 64-bit word's bytes.
 fn fnv(hash: u64, word: u64) -> u64 {
-    word.to_le_bytes().iter().fold(hash, |h, &b| {
-        (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3)
-    })
+    fnv1a(hash, &word.to_le_bytes())
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -36,10 +35,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     let mut world = scene::pile(seed, bodies)?.build(WorldSettings::default())?;
     let (mut solver, mut position) = (PgsSolver::default(), PgsPositionSolver::default());
-    let mut total = 0xcbf2_9ce4_8422_2325u64;
+    let mut total = FNV_OFFSET;
     for _ in 0..steps {
         let r = world.step(&mut CarriedWarmStart, &mut solver, &mut position)?;
-        let mut h = 0xcbf2_9ce4_8422_2325u64;
+        let mut h = FNV_OFFSET;
         for b in world.bodies() {
             for v in b.state() {
                 h = fnv(h, v.to_bits());

@@ -27,7 +27,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use deepcontact_benches::{Recorder, SEED};
+use deepcontact_benches::{Recorder, SEED, median};
 use deepcontact_core::{CarriedWarmStart, WarmStartContext, WorldSettings, scene};
 use deepcontact_graph::{
     ContactGraphModel, FEATURES, GraphWarmStart, PointInput, Scratch, point_inputs,
@@ -263,11 +263,6 @@ fn time_fill(onnx: &mut OnnxBackend, steps: &[Vec<Island>]) -> f64 {
     t.elapsed().as_secs_f64() / steps.len() as f64 * 1e6
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 /// µs per step of each round, the two backends in alternating order: Rust, ONNX, and the
 /// ONNX inputs' building alone.
 type Times = (Vec<f64>, Vec<f64>, Vec<f64>);
@@ -406,11 +401,7 @@ fn print_report(
 ) {
     let (n, islands, points, bodies, largest) =
         (c.steps as f64, c.islands, c.points, c.bodies, c.largest);
-    let (r, x, f) = (
-        median(us_rust.clone()),
-        median(us_onnx.clone()),
-        median(us_fill.clone()),
-    );
+    let (r, x, f) = (median(us_rust), median(us_onnx), median(us_fill));
     let min = |v: &[f64]| v.iter().copied().fold(f64::INFINITY, f64::min);
     println!(
         "Pile of {BODIES} circles (seed {SEED}), steps {}..{}: {:.1} islands, {:.1} contact \

@@ -18,6 +18,8 @@ use std::path::PathBuf;
 use std::process::Command;
 use std::time::Instant;
 
+use deepcontact_benches::{FNV_OFFSET, fnv1a, median};
+
 /// Command-line options.
 struct Options {
     bin: PathBuf,
@@ -99,13 +101,6 @@ fn parse() -> Result<Option<Options>, String> {
     Ok(Some(o))
 }
 
-/// FNV-1a over bytes.
-fn fnv(hash: u64, bytes: &[u8]) -> u64 {
-    bytes.iter().fold(hash, |h, &b| {
-        (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3)
-    })
-}
-
 /// Runs one process on `threads` threads and reads its step reports.
 fn run(o: &Options, threads: usize) -> Result<Run, String> {
     let mut cmd = Command::new(&o.bin);
@@ -136,7 +131,7 @@ fn run(o: &Options, threads: usize) -> Result<Run, String> {
         ));
     }
     let text = String::from_utf8(out.stdout).map_err(|e| format!("report not UTF-8: {e}"))?;
-    let (mut steps, mut hash, mut lines) = (0.0, 0xcbf2_9ce4_8422_2325u64, 0);
+    let (mut steps, mut hash, mut lines) = (0.0, FNV_OFFSET, 0);
     for line in text.lines().filter(|l| !l.trim().is_empty()) {
         let mut report: serde_json::Map<String, serde_json::Value> =
             serde_json::from_str(line).map_err(|e| format!("step report {lines}: {e}"))?;
@@ -146,7 +141,7 @@ fn run(o: &Options, threads: usize) -> Result<Run, String> {
             .ok_or(format!("step report {lines} has no step_seconds"))?;
         report.retain(|key, _| !key.ends_with("_seconds"));
         let canonical = serde_json::to_string(&report).map_err(|e| e.to_string())?;
-        hash = fnv(hash, canonical.as_bytes());
+        hash = fnv1a(hash, canonical.as_bytes());
         lines += 1;
     }
     if lines as u64 != o.steps {
@@ -157,15 +152,12 @@ fn run(o: &Options, threads: usize) -> Result<Run, String> {
 
 /// Median, smallest and largest of `v` (not empty).
 fn spread(v: &[f64]) -> (f64, f64, f64) {
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    let n = s.len();
-    let median = if n % 2 == 1 {
-        s[n / 2]
-    } else {
-        0.5 * (s[n / 2 - 1] + s[n / 2])
-    };
-    (median, s[0], s[n - 1])
+    let (lo, hi) = v
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &x| {
+            (lo.min(x), hi.max(x))
+        });
+    (median(v), lo, hi)
 }
 
 fn main() {

@@ -21,7 +21,7 @@
 
 use std::time::Instant;
 
-use deepcontact_benches::{SEED, settle_world};
+use deepcontact_benches::{FNV_OFFSET, SEED, fnv1a, median, settle_world};
 use deepcontact_core::{CarriedWarmStart, World, WorldSettings, scene};
 use deepcontact_pgs::{PgsPositionSettings, PgsPositionSolver, PgsSettings, PgsSolver};
 
@@ -168,11 +168,6 @@ fn run(snapshot: &World, config: Config, steps: u64) -> Result<Run, String> {
     Ok(r)
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 /// The pile of `o.bodies` circles settled for `o.settle` steps.
 fn settled_pile(o: &Options) -> Result<World, String> {
     let t0 = Instant::now();
@@ -208,16 +203,6 @@ fn settled_pile(o: &Options) -> Result<World, String> {
 /// The ratio of `many` (runs on `threads` threads) to `one` (one thread) round by round, and
 /// of their fastest rounds: the runs of a round follow each other within a second, so they
 /// share the machine's state more often than the medians of whole columns do.
-/// The FNV-1a hash of `words`' bytes.
-fn fnv1a(words: &[u64]) -> u64 {
-    words
-        .iter()
-        .flat_map(|w| w.to_le_bytes())
-        .fold(0xcbf2_9ce4_8422_2325, |h, byte| {
-            (h ^ u64::from(byte)).wrapping_mul(0x0000_0100_0000_01b3)
-        })
-}
-
 fn print_rounds(threads: usize, many: &[Run], one: &[Run]) {
     let paired: Vec<f64> = many.iter().zip(one).map(|(m, o)| m.wall / o.wall).collect();
     let fastest = |rs: &[Run]| rs.iter().map(|r| r.wall).fold(f64::INFINITY, f64::min);
@@ -229,7 +214,7 @@ fn print_rounds(threads: usize, many: &[Run], one: &[Run]) {
     println!(
         "\n{threads} threads / 1 thread, round by round: median {:.3} ({lo:.3}–{hi:.3}, {} \
          rounds); fastest round / fastest round: {:.3}",
-        median(paired.clone()),
+        median(&paired),
         paired.len(),
         fastest(many) / fastest(one),
     );
@@ -265,7 +250,11 @@ fn main() -> Result<(), String> {
         }
     }
     let per_step = |rs: &[Run], f: fn(&Run) -> f64| {
-        median(rs.iter().map(|r| f(r) / o.steps as f64 * 1e3).collect())
+        median(
+            &rs.iter()
+                .map(|r| f(r) / o.steps as f64 * 1e3)
+                .collect::<Vec<_>>(),
+        )
     };
     println!(
         "Pile of {} circles (seed {}) settled {} steps, then {} steps under the thesis stop \
@@ -282,7 +271,10 @@ fn main() -> Result<(), String> {
         reference.islands as f64 / o.steps as f64,
         reference.iterations as f64 / o.steps as f64,
         reference.position_iterations as f64 / o.steps as f64,
-        fnv1a(&reference.bits),
+        reference
+            .bits
+            .iter()
+            .fold(FNV_OFFSET, |h, w| fnv1a(h, &w.to_le_bytes())),
     );
     println!(
         "| threads | step ms (median) | velocity solve ms | rest ms | step / chunked 1 thread | \

@@ -12,7 +12,8 @@
 //! * [`SolveScratch`] — solves recorded islands again and again from their recorded warm start
 //!   (for solver benchmarks), counting point-iterations so that a time can be turned into
 //!   nanoseconds per contact point per iteration;
-//! * settings: [`fixed_iterations`], [`fixed_world`], [`settle_world`].
+//! * settings: [`fixed_iterations`], [`fixed_world`], [`settle_world`];
+//! * the examples' arithmetic: [`median`] and the [`fnv1a`] hash (with [`FNV_OFFSET`]).
 //!
 //! Nothing here measures time; the benchmarks and the example do.
 #![warn(missing_docs)]
@@ -330,9 +331,46 @@ impl SolveScratch {
     }
 }
 
+/// The median of `v`: its middle value, the mean of the two middle ones for an even count
+/// (NaN when empty).
+pub fn median(v: &[f64]) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    match s.len() {
+        0 => f64::NAN,
+        n if n % 2 == 1 => s[n / 2],
+        n => 0.5 * (s[n / 2 - 1] + s[n / 2]),
+    }
+}
+
+/// FNV-1a's offset basis: the hash of no bytes, where a hash starts.
+pub const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+
+/// The 64-bit FNV-1a hash of `bytes`, continuing from `hash` ([`FNV_OFFSET`] to start): the
+/// examples' fingerprints of bit patterns and reports.
+pub fn fnv1a(hash: u64, bytes: &[u8]) -> u64 {
+    bytes.iter().fold(hash, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn median_and_fnv1a_give_their_textbook_values() {
+        assert_eq!(median(&[3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(&[4.0, 1.0, 3.0, 2.0]), 2.5);
+        assert!(median(&[]).is_nan());
+        // FNV-1a 64 of "a" and of "foobar" (the published test vectors).
+        assert_eq!(fnv1a(FNV_OFFSET, b"a"), 0xaf63_dc4c_8601_ec8c);
+        assert_eq!(fnv1a(FNV_OFFSET, b"foobar"), 0x8594_4171_f739_67e8);
+        assert_eq!(
+            fnv1a(fnv1a(FNV_OFFSET, b"foo"), b"bar"),
+            fnv1a(FNV_OFFSET, b"foobar")
+        );
+    }
 
     #[test]
     fn recorder_sees_the_worlds_problems() {

@@ -22,7 +22,7 @@
 
 use std::time::Instant;
 
-use deepcontact_benches::fixed_iterations;
+use deepcontact_benches::{fixed_iterations, median};
 use deepcontact_core::{CarriedWarmStart, PositionSolver, VelocitySolver, World, WorldSettings};
 
 use super::rapier_pile::{RapierConfig, RapierPile};
@@ -97,16 +97,6 @@ pub struct SlopeRow {
     pub ours: Vec<OurSlope>,
     /// rapier2d.
     pub rapier: Slope,
-}
-
-fn median(v: &[f64]) -> f64 {
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    match s.len() {
-        0 => f64::NAN,
-        n if n % 2 == 1 => s[n / 2],
-        n => 0.5 * (s[n / 2 - 1] + s[n / 2]),
-    }
 }
 
 /// Steps per engine, pass count and round for a pile of `n` bodies: about 10 000 body-steps,
