@@ -7,7 +7,8 @@
 //! body of a seam between two domains has one shared value, which a domain takes before its sweep
 //! and leaves after it; the phases order those hand-overs. That is one Gauss-Seidel order of
 //! all constraints whatever the threads, and the domains' measures are folded in sweep order,
-//! so the result is bit-identical for any thread count.
+//! so the result is bit-identical for any thread count. One thread runs the same order in a
+//! plain loop ([`alone`]).
 
 use std::sync::{Mutex, PoisonError};
 
@@ -61,6 +62,10 @@ pub(crate) fn sweep_parts<P: Part>(
         }
     }
     let order: Vec<usize> = sweep_order(n).collect();
+    let threads = useful_threads(threads, n);
+    if threads == 1 {
+        return (alone(parts, partition, &order, max_iterations, stop), 1);
+    }
     // Each domain's lock and measures on cache lines of their own: the threads that sweep
     // neighbouring domains do not pass lines back and forth.
     let parts: Vec<Padded<Mutex<&mut P>>> =
@@ -89,7 +94,6 @@ pub(crate) fn sweep_parts<P: Part>(
         lock(&done).push(all);
         stop(it, &all)
     };
-    let threads = useful_threads(threads, n);
     run_phased(
         threads,
         max_iterations,
@@ -108,4 +112,52 @@ pub(crate) fn sweep_parts<P: Part>(
         done.into_inner().unwrap_or_else(PoisonError::into_inner),
         threads,
     )
+}
+
+/// [`sweep_parts`] on the calling thread alone: the same sweeps, hand-overs and folds in the
+/// same order, so the same bits, without the queue, the locks and the atomics that a second
+/// thread needs. Those cost about as much an iteration whatever the domains hold (a claim, two
+/// locks and the seams' cells a domain, a fold of every domain's measures a phase), so they
+/// weigh most on small domains: a third of the plan's cost over the plain sweep on an island
+/// of 1 500 points in four domains (docs/PERFORMANCE.md).
+fn alone<P: Part>(
+    parts: &mut [P],
+    partition: &Partition,
+    order: &[usize],
+    max_iterations: u32,
+    stop: &(dyn Fn(u32, &P::Measures) -> bool + Sync),
+) -> Vec<P::Measures> {
+    let (links, ranges) = (&partition.links, &partition.link_ranges);
+    let mut shared = vec![[0.0; 3]; partition.shared.len()];
+    for (part, range) in parts.iter().zip(ranges) {
+        for &(s, k) in &links[range.clone()] {
+            shared[k as usize] = part.get(s);
+        }
+    }
+    let mut done = Vec::with_capacity(max_iterations.min(4096) as usize);
+    for it in 0..max_iterations {
+        let mut all = P::Measures::default();
+        for &p in order {
+            let part = &mut parts[p];
+            let links = &links[ranges[p].clone()];
+            for &(s, k) in links {
+                part.set(s, shared[k as usize]);
+            }
+            let m = part.sweep();
+            for &(s, k) in links {
+                shared[k as usize] = part.get(s);
+            }
+            P::fold(&mut all, &m);
+        }
+        done.push(all);
+        if stop(it, &all) {
+            break;
+        }
+    }
+    for (part, range) in parts.iter_mut().zip(ranges) {
+        for &(s, k) in &links[range.clone()] {
+            part.set(s, shared[k as usize]);
+        }
+    }
+    done
 }
