@@ -1,5 +1,5 @@
-//! The `coarse` provider: carried impulses corrected on a coarse level of layers, between
-//! PGS sweeps (a two-grid cycle).
+//! The `coarse` provider: carried impulses corrected on a coarse level of layers or cells,
+//! between PGS sweeps (a two-grid cycle).
 //!
 //! PGS is slow at the error that redistributes load through a pile: a change of the load
 //! a body carries has to travel down, one contact a sweep (docs/RESEARCH.md). The coarse
@@ -8,7 +8,9 @@
 //! added to every loaded contact of the layer: `Δλ = P c`, `P` the layers' indicator
 //! columns over the normal rows. The Galerkin coarse problem `(Pᵀ W P) c = Pᵀ r` — `W` the
 //! Delassus operator `J M⁻¹ Jᵀ` (matrix-free), `r = b − J v(λ)` the normal rows' velocity
-//! error — moves a whole layer's load at once. A round is `sweeps` PGS sweeps (smoothing),
+//! error — moves a whole layer's load at once. With a cell `width`, the groups are cells
+//! `layer` high and `width` wide instead (by the contact point's height and abscissa), so that
+//! the coarse level also moves load sideways. A round is `sweeps` PGS sweeps (smoothing),
 //! the correction (projected onto the friction cones), and `sweeps` sweeps again; the
 //! sweeps and the coarse solve are provider time, each coarse solve counted as one pass.
 
@@ -30,6 +32,8 @@ pub struct CoarseConfig {
     pub sweeps: u32,
     /// Rounds of sweeps, correction, sweeps (default 2, in 1..=100).
     pub rounds: u32,
+    /// Width of a cell (m; default infinite: whole layers; > 0).
+    pub width: Real,
 }
 
 impl Default for CoarseConfig {
@@ -38,12 +42,16 @@ impl Default for CoarseConfig {
             layer: 1.0,
             sweeps: 4,
             rounds: 2,
+            width: Real::INFINITY,
         }
     }
 }
 
 /// Most layers of an island (taller islands get thicker layers).
 const MAX_LAYERS: usize = 128;
+
+/// Most cells of an island (larger islands get larger cells; the coarse solve is dense).
+const MAX_CELLS: usize = 256;
 
 /// Carried impulses corrected on a coarse level of layers between PGS sweeps (see the
 /// module docs). Buffers are kept between calls.
@@ -52,8 +60,10 @@ pub struct CoarseWarmStart {
     config: CoarseConfig,
     inner: InnerSolve,
     solver: PgsSolver,
-    /// Per point: its layer, or `usize::MAX` when not loaded.
+    /// Per point: its layer (or cell), or `usize::MAX` when not loaded.
     layer_of: Vec<usize>,
+    /// Per cell: its index among the non-empty cells (scratch).
+    cell_index: Vec<usize>,
     /// Row-sized scratch (impulses as rows, a layer's indicator).
     flat: Vec<Real>,
     indicator: Vec<Real>,
@@ -76,6 +86,14 @@ impl CoarseWarmStart {
                 reason: "must be finite and > 0".into(),
             });
         }
+        if config.width.is_nan() || config.width <= 0.0 {
+            return Err(SpecError::InvalidParameter {
+                spec: "coarse".into(),
+                param: "width".into(),
+                value: config.width.to_string(),
+                reason: "must be > 0 (inf: whole layers)".into(),
+            });
+        }
         in_range("coarse", "rounds", config.rounds, 1..=100)?;
         let inner = InnerSolve::new("coarse", "sweeps", config.sweeps, 1000, 0.0)?;
         Ok(Self {
@@ -83,6 +101,7 @@ impl CoarseWarmStart {
             inner,
             solver: PgsSolver::new(),
             layer_of: Vec::new(),
+            cell_index: Vec::new(),
             flat: Vec::new(),
             indicator: Vec::new(),
             v: Vec::new(),
@@ -111,8 +130,12 @@ impl CoarseWarmStart {
         Ok(())
     }
 
-    /// The layers of the loaded points; their count (0: nothing to correct).
+    /// The groups of the loaded points, layers or cells; their count (0: nothing to
+    /// correct).
     fn layers(&mut self, problem: &ContactProblem, impulses: &[Impulse]) -> usize {
+        if self.config.width.is_finite() {
+            return self.cells(problem, impulses);
+        }
         let loaded = |k: usize| impulses[k].normal > 0.0;
         let (lo, hi) = (0..impulses.len())
             .filter(|&k| loaded(k))
@@ -133,6 +156,58 @@ impl CoarseWarmStart {
                 usize::MAX
             }
         }));
+        count
+    }
+
+    /// The cells (`layer` × `width`, both grown by a quarter at a time until there are at most
+    /// [`MAX_CELLS`]) of the loaded points; their count (0: nothing to correct).
+    fn cells(&mut self, problem: &ContactProblem, impulses: &[Impulse]) -> usize {
+        let loaded = |k: usize| impulses[k].normal > 0.0;
+        let mut lo = [Real::INFINITY; 2];
+        let mut hi = [Real::NEG_INFINITY; 2];
+        for k in (0..impulses.len()).filter(|&k| loaded(k)) {
+            let p = problem.points[k].point;
+            for (i, x) in [p.x, p.y].into_iter().enumerate() {
+                lo[i] = lo[i].min(x);
+                hi[i] = hi[i].max(x);
+            }
+        }
+        if !(lo[0].is_finite() && hi[0].is_finite()) {
+            return 0;
+        }
+        let (mut w, mut h) = (self.config.width, self.config.layer);
+        let span = |i: usize, size: Real| ((hi[i] - lo[i]) / size) as usize + 1;
+        while span(0, w) * span(1, h) > MAX_CELLS {
+            w *= 1.25;
+            h *= 1.25;
+        }
+        let (cols, rows) = (span(0, w), span(1, h));
+        self.layer_of.clear();
+        self.layer_of.extend((0..impulses.len()).map(|k| {
+            if loaded(k) {
+                let p = problem.points[k].point;
+                let col = (((p.x - lo[0]) / w) as usize).min(cols - 1);
+                let row = (((p.y - lo[1]) / h) as usize).min(rows - 1);
+                row * cols + col
+            } else {
+                usize::MAX
+            }
+        }));
+        // Empty cells dropped (the coarse matrix has no zero rows), the rest numbered in
+        // cell order.
+        self.cell_index.clear();
+        self.cell_index.resize(rows * cols, usize::MAX);
+        for &g in self.layer_of.iter().filter(|&&g| g != usize::MAX) {
+            self.cell_index[g] = 0;
+        }
+        let mut count = 0;
+        for c in self.cell_index.iter_mut().filter(|c| **c != usize::MAX) {
+            *c = count;
+            count += 1;
+        }
+        for g in self.layer_of.iter_mut().filter(|g| **g != usize::MAX) {
+            *g = self.cell_index[*g];
+        }
         count
     }
 

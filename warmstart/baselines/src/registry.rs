@@ -123,14 +123,16 @@ fn register_accelerated(registry: &mut Registry) {
     );
     registry.register_provider(
         "coarse",
-        "builtin corrected on a coarse level of horizontal layers between PGS sweeps; \
-         layer=1 (m), sweeps=4 (before and after each correction), rounds=2",
+        "builtin corrected on a coarse level of horizontal layers (or cells) between PGS sweeps; \
+         layer=1 (m), sweeps=4 (before and after each correction), rounds=2, width=inf (m; a \
+         finite width: cells layer high and width wide)",
         |p, _| {
             let d = CoarseConfig::default();
             let config = CoarseConfig {
                 layer: p.f64("layer", d.layer)?,
                 sweeps: u32_param(p, "sweeps", d.sweeps)?,
                 rounds: u32_param(p, "rounds", d.rounds)?,
+                width: p.f64("width", d.width)?,
             };
             Ok(Box::new(CoarseWarmStart::new(config)?))
         },

@@ -725,6 +725,79 @@ fn coarse_layers_carry_a_column_its_missing_load_in_one_correction() {
     }
 }
 
+/// Two [`column`]s of `n` bodies, 3 m apart, in one problem (the second's points after the
+/// first's), the first carried a quarter short of its load and the second a quarter over.
+fn two_columns_short_and_over(n: usize) -> (ContactProblem, Vec<Impulse>, Vec<Option<Impulse>>) {
+    let mut p = ContactProblem::new();
+    let mut carried = Vec::new();
+    for (x, share) in [(0.0, 0.75), (3.0, 1.25)] {
+        let ground = p.add_body(ProblemBody::fixed(Vector::new(x, -0.5)));
+        let mut below = ground;
+        for k in 0..n {
+            let y = 0.5 + k as f64;
+            let body = p.add_body(ProblemBody::dynamic(
+                Vector::new(x, y),
+                0.0,
+                Vector::new(0.0, -G * DT),
+                0.0,
+                MASS,
+                MASS / 8.0,
+            ));
+            p.begin_manifold();
+            let desc = PointDesc::new(below, body, Vector::new(x, y - 0.5), Vector::new(0.0, 1.0))
+                .id(ContactId {
+                    body_a: below,
+                    body_b: body,
+                    ..ContactId::default()
+                })
+                .friction(0.5);
+            p.add_point(&desc).unwrap();
+            below = body;
+        }
+        carried.extend(
+            exact(n)
+                .iter()
+                .map(|i| Some(Impulse::new(share * i.normal, 0.0))),
+        );
+    }
+    let answer = [exact(n), exact(n)].concat();
+    (p, answer, carried)
+}
+
+#[test]
+fn coarse_cells_carry_two_columns_their_loads_where_layers_cannot() {
+    // One layer spans both columns, one short and one over: its one unknown cannot correct
+    // both. Cells 1 m wide give each column's layer its own unknown: one correction finds
+    // both columns' loads (to the coarse solve's regularisation).
+    let (problem, answer, carried) = two_columns_short_and_over(10);
+    let worst = |width| {
+        let config = CoarseConfig {
+            rounds: 1,
+            sweeps: 1,
+            width,
+            ..CoarseConfig::default()
+        };
+        let mut coarse = CoarseWarmStart::new(config).unwrap();
+        let start = start_of(&mut coarse, &problem, &carried, 1);
+        assert_eq!(coarse.passes_spent(), 3, "a sweep, the correction, a sweep");
+        start
+            .iter()
+            .zip(&answer)
+            .map(|(got, want)| (got.normal - want.normal).abs())
+            .fold(0.0, f64::max)
+    };
+    let (cells, layers) = (worst(1.0), worst(f64::INFINITY));
+    assert!(cells < 1e-6, "cells leave an error of {cells:e}");
+    assert!(layers > 1e-3, "layers leave an error of only {layers:e}");
+    for width in [0.0, -1.0, f64::NAN] {
+        let config = CoarseConfig {
+            width,
+            ..CoarseConfig::default()
+        };
+        assert!(CoarseWarmStart::new(config).is_err(), "{config:?}");
+    }
+}
+
 #[test]
 fn sor_gives_islands_above_max_points_the_start_unswept() {
     // An 8-point column: with room for 8 points the sweeps run; with room for 7 the island
