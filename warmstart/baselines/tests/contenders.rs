@@ -21,12 +21,19 @@ const MASS: f64 = 0.785;
 /// `n` unit-diameter circles stacked on fixed ground, each falling at `g dt` before the solve.
 fn column(n: usize) -> ContactProblem {
     let mut p = ContactProblem::new();
-    let ground = p.add_body(ProblemBody::fixed(Vector::new(0.0, -0.5)));
+    add_column(&mut p, n, 0.0);
+    p
+}
+
+/// A [`column`] of `n` circles standing at abscissa `x`, appended to `p` (its ground, bodies
+/// and points after those already there).
+fn add_column(p: &mut ContactProblem, n: usize, x: f64) {
+    let ground = p.add_body(ProblemBody::fixed(Vector::new(x, -0.5)));
     let mut below = ground;
     for k in 0..n {
         let y = 0.5 + k as f64;
         let body = p.add_body(ProblemBody::dynamic(
-            Vector::new(0.0, y),
+            Vector::new(x, y),
             0.0,
             Vector::new(0.0, -G * DT),
             0.0,
@@ -34,22 +41,16 @@ fn column(n: usize) -> ContactProblem {
             MASS / 8.0,
         ));
         p.begin_manifold();
-        let desc = PointDesc::new(
-            below,
-            body,
-            Vector::new(0.0, y - 0.5),
-            Vector::new(0.0, 1.0),
-        )
-        .id(ContactId {
-            body_a: below,
-            body_b: body,
-            ..ContactId::default()
-        })
-        .friction(0.5);
+        let desc = PointDesc::new(below, body, Vector::new(x, y - 0.5), Vector::new(0.0, 1.0))
+            .id(ContactId {
+                body_a: below,
+                body_b: body,
+                ..ContactId::default()
+            })
+            .friction(0.5);
         p.add_point(&desc).unwrap();
         below = body;
     }
-    p
 }
 
 /// The exact answer of [`column`]: the bottom point holds all n bodies.
@@ -731,29 +732,7 @@ fn two_columns_short_and_over(n: usize) -> (ContactProblem, Vec<Impulse>, Vec<Op
     let mut p = ContactProblem::new();
     let mut carried = Vec::new();
     for (x, share) in [(0.0, 0.75), (3.0, 1.25)] {
-        let ground = p.add_body(ProblemBody::fixed(Vector::new(x, -0.5)));
-        let mut below = ground;
-        for k in 0..n {
-            let y = 0.5 + k as f64;
-            let body = p.add_body(ProblemBody::dynamic(
-                Vector::new(x, y),
-                0.0,
-                Vector::new(0.0, -G * DT),
-                0.0,
-                MASS,
-                MASS / 8.0,
-            ));
-            p.begin_manifold();
-            let desc = PointDesc::new(below, body, Vector::new(x, y - 0.5), Vector::new(0.0, 1.0))
-                .id(ContactId {
-                    body_a: below,
-                    body_b: body,
-                    ..ContactId::default()
-                })
-                .friction(0.5);
-            p.add_point(&desc).unwrap();
-            below = body;
-        }
+        add_column(&mut p, n, x);
         carried.extend(
             exact(n)
                 .iter()
