@@ -172,16 +172,17 @@ impl CoarseWarmStart {
                 hi[i] = hi[i].max(x);
             }
         }
-        if !(lo[0].is_finite() && hi[0].is_finite()) {
+        if !lo.iter().chain(&hi).all(|x| x.is_finite()) {
             return 0;
         }
         let (mut w, mut h) = (self.config.width, self.config.layer);
-        let span = |i: usize, size: Real| ((hi[i] - lo[i]) / size) as usize + 1;
-        while span(0, w) * span(1, h) > MAX_CELLS {
+        // Counted in floating point: a tiny cell over a wide island overflows no integer.
+        let span = |i: usize, size: Real| ((hi[i] - lo[i]) / size).floor() + 1.0;
+        while span(0, w) * span(1, h) > MAX_CELLS as Real {
             w *= 1.25;
             h *= 1.25;
         }
-        let (cols, rows) = (span(0, w), span(1, h));
+        let (cols, rows) = (span(0, w) as usize, span(1, h) as usize);
         self.layer_of.clear();
         self.layer_of.extend((0..impulses.len()).map(|k| {
             if loaded(k) {

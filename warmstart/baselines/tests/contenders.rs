@@ -778,6 +778,28 @@ fn coarse_cells_carry_two_columns_their_loads_where_layers_cannot() {
 }
 
 #[test]
+fn coarse_cells_far_narrower_than_the_island_do_not_overflow_the_cell_count() {
+    // 3 m of island over 1e-300 m cells: 3e300 columns, beyond any integer; the cells grow
+    // until at most 256 fit (the build before counted them in `usize`, wrapped to none and
+    // panicked on an empty cell index).
+    let (problem, _, carried) = two_columns_short_and_over(4);
+    let config = CoarseConfig {
+        rounds: 1,
+        sweeps: 1,
+        width: 1e-300,
+        ..CoarseConfig::default()
+    };
+    let mut coarse = CoarseWarmStart::new(config).unwrap();
+    let start = start_of(&mut coarse, &problem, &carried, 1);
+    assert_eq!(coarse.passes_spent(), 3, "a sweep, the correction, a sweep");
+    assert!(
+        start
+            .iter()
+            .all(|i| i.normal.is_finite() && i.normal >= 0.0)
+    );
+}
+
+#[test]
 fn sor_gives_islands_above_max_points_the_start_unswept() {
     // An 8-point column: with room for 8 points the sweeps run; with room for 7 the island
     // gets the carried impulses as they are, no pass spent, and the gate is counted.
