@@ -13,6 +13,10 @@
 //!
 //! `--bin PATH` names the binary (default: `deepcontact` beside this example's directory, as
 //! cargo builds both into `target/release`); `--scene`, `--seed` and `--solver` are passed on.
+//! Last, a table of the stages' seconds (`collide_seconds`, `islands_seconds`,
+//! `solve_seconds`, `position_seconds` and `step_seconds` of the reports) summed over the steps
+//! of each phase, medians over the pairs, for both thread counts; `--phases 150,205` cuts the
+//! run into phases at those steps (default: one phase, the whole run).
 
 use std::path::PathBuf;
 use std::process::Command;
@@ -30,17 +34,31 @@ struct Options {
     solver: Option<String>,
     threads: [usize; 2],
     pairs: usize,
+    /// The first step of each phase after the first (ascending, under `steps`).
+    phases: Vec<u64>,
 }
 
-/// One process's run: its wall time, the sum of its steps' `step_seconds`, its report hash.
+/// The timed stages of a step report, as the table names them, and their fields.
+const STAGES: [(&str, &str); 5] = [
+    ("collide", "collide_seconds"),
+    ("islands", "islands_seconds"),
+    ("velocity solves", "solve_seconds"),
+    ("position passes", "position_seconds"),
+    ("whole steps", "step_seconds"),
+];
+
+/// One process's run: its wall time, the sum of its steps' `step_seconds`, its report hash,
+/// and per phase the stages' seconds summed over its steps.
 struct Run {
     wall: f64,
     steps: f64,
     hash: u64,
+    stages: Vec<[f64; STAGES.len()]>,
 }
 
 const USAGE: &str = "usage: thread_pairs [--bin PATH] [--bodies 10000] [--steps 250] \
-                     [--seed S] [--scene NAME] [--solver SPEC] [--threads 1,2] [--pairs 12]";
+                     [--seed S] [--scene NAME] [--solver SPEC] [--threads 1,2] [--pairs 12] \
+                     [--phases STEP,STEP,...]";
 
 fn parse() -> Result<Option<Options>, String> {
     let beside = std::env::current_exe()
@@ -56,6 +74,7 @@ fn parse() -> Result<Option<Options>, String> {
         solver: None,
         threads: [1, 2],
         pairs: 12,
+        phases: Vec::new(),
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -76,6 +95,12 @@ fn parse() -> Result<Option<Options>, String> {
             "--scene" => o.scene = Some(value),
             "--solver" => o.solver = Some(value),
             "--pairs" => o.pairs = number(&value)? as usize,
+            "--phases" => {
+                o.phases = value
+                    .split(',')
+                    .map(number)
+                    .collect::<Result<Vec<_>, _>>()?;
+            }
             "--threads" => {
                 let counts = value
                     .split(',')
@@ -91,6 +116,14 @@ fn parse() -> Result<Option<Options>, String> {
     }
     if o.pairs == 0 {
         return Err("--pairs must be at least 1".into());
+    }
+    let ascending = o.phases.windows(2).all(|w| w[0] < w[1]);
+    if !ascending || o.phases.first() == Some(&0) || o.phases.last() >= Some(&o.steps) {
+        return Err(format!(
+            "--phases wants ascending steps between 1 and {}: {:?}",
+            o.steps.saturating_sub(1),
+            o.phases
+        ));
     }
     if !o.bin.is_file() {
         return Err(format!(
@@ -132,13 +165,21 @@ fn run(o: &Options, threads: usize) -> Result<Run, String> {
     }
     let text = String::from_utf8(out.stdout).map_err(|e| format!("report not UTF-8: {e}"))?;
     let (mut steps, mut hash, mut lines) = (0.0, FNV_OFFSET, 0);
+    let mut stages = vec![[0.0; STAGES.len()]; o.phases.len() + 1];
     for line in text.lines().filter(|l| !l.trim().is_empty()) {
         let mut report: serde_json::Map<String, serde_json::Value> =
             serde_json::from_str(line).map_err(|e| format!("step report {lines}: {e}"))?;
-        steps += report
-            .get("step_seconds")
-            .and_then(serde_json::Value::as_f64)
-            .ok_or(format!("step report {lines} has no step_seconds"))?;
+        let seconds = |field: &str| {
+            report
+                .get(field)
+                .and_then(serde_json::Value::as_f64)
+                .ok_or(format!("step report {lines} has no {field}"))
+        };
+        steps += seconds("step_seconds")?;
+        let phase = o.phases.partition_point(|&first| first <= lines as u64);
+        for (sum, (_, field)) in stages[phase].iter_mut().zip(STAGES) {
+            *sum += seconds(field)?;
+        }
         report.retain(|key, _| !key.ends_with("_seconds"));
         let canonical = serde_json::to_string(&report).map_err(|e| e.to_string())?;
         hash = fnv1a(hash, canonical.as_bytes());
@@ -147,7 +188,12 @@ fn run(o: &Options, threads: usize) -> Result<Run, String> {
     if lines as u64 != o.steps {
         return Err(format!("{lines} step reports for {} steps", o.steps));
     }
-    Ok(Run { wall, steps, hash })
+    Ok(Run {
+        wall,
+        steps,
+        hash,
+        stages,
+    })
 }
 
 /// Median, smallest and largest of `v` (not empty).
@@ -178,6 +224,8 @@ fn main() {
         o.pairs
     );
     let (mut walls, mut sums, mut hashes) = (Vec::new(), Vec::new(), Vec::<u64>::new());
+    // Per thread count (A, B): every pair's stage sums.
+    let mut stages: [Vec<Vec<[f64; STAGES.len()]>>; 2] = [Vec::new(), Vec::new()];
     for pair in 0..o.pairs {
         let order = if pair % 2 == 0 { [a, b] } else { [b, a] };
         let [first, second] = order.map(|threads| {
@@ -212,6 +260,8 @@ fn main() {
             std::process::exit(1);
         }
         hashes.push(ra.hash);
+        stages[0].push(ra.stages.clone());
+        stages[1].push(rb.stages.clone());
     }
     let (wm, wl, wh) = spread(&walls);
     let (sm, sl, sh) = spread(&sums);
@@ -220,4 +270,36 @@ fn main() {
          median {sm:.3} ({sl:.3}–{sh:.3}); every report the same bits ({:016x})",
         o.pairs, hashes[0]
     );
+    print_stages(&o, &stages);
+}
+
+/// The stages' seconds per phase, medians over the pairs, `A / B` threads, as a table.
+fn print_stages(o: &Options, stages: &[Vec<Vec<[f64; STAGES.len()]>>; 2]) {
+    let [a, b] = o.threads;
+    let bounds: Vec<u64> = std::iter::once(0)
+        .chain(o.phases.iter().copied())
+        .chain(std::iter::once(o.steps))
+        .collect();
+    println!(
+        "\nseconds summed over each phase's steps, medians of {} pairs, {a} / {b} threads:\n",
+        o.pairs
+    );
+    let heads: Vec<String> = bounds
+        .windows(2)
+        .map(|w| format!("steps {}–{}", w[0], w[1] - 1))
+        .collect();
+    println!("| stage | {} |", heads.join(" | "));
+    println!("|---|{}", "---|".repeat(heads.len()));
+    for (s, (name, _)) in STAGES.iter().enumerate() {
+        let cells: Vec<String> = (0..heads.len())
+            .map(|phase| {
+                let [ma, mb] = [0, 1].map(|t| {
+                    let v: Vec<f64> = stages[t].iter().map(|run| run[phase][s]).collect();
+                    median(&v)
+                });
+                format!("{ma:.3} / {mb:.3}")
+            })
+            .collect();
+        println!("| {name} | {} |", cells.join(" | "));
+    }
 }
