@@ -672,6 +672,25 @@ fn anderson_loads_a_column_in_fewer_passes_than_pgs_from_the_carried_start() {
     }
 }
 
+/// `coarse`'s start from `carried` after one round of one sweep, the correction and one sweep,
+/// its groups cells `width` wide (infinite: whole layers).
+fn one_coarse_round(
+    width: f64,
+    problem: &ContactProblem,
+    carried: &[Option<Impulse>],
+) -> Vec<Impulse> {
+    let config = CoarseConfig {
+        rounds: 1,
+        sweeps: 1,
+        width,
+        ..CoarseConfig::default()
+    };
+    let mut coarse = CoarseWarmStart::new(config).unwrap();
+    let start = start_of(&mut coarse, problem, carried, 1);
+    assert_eq!(coarse.passes_spent(), 3, "a sweep, the correction, a sweep");
+    start
+}
+
 #[test]
 fn coarse_layers_carry_a_column_its_missing_load_in_one_correction() {
     // One contact a layer (unit spacing, 1 m layers): the coarse problem is the column's
@@ -679,14 +698,7 @@ fn coarse_layers_carry_a_column_its_missing_load_in_one_correction() {
     // once (to the coarse solve's regularisation, 1e-9 of the diagonal); from the carried
     // start PGS needs hundreds of sweeps.
     let (problem, answer, carried) = short_of_load(20);
-    let config = CoarseConfig {
-        rounds: 1,
-        sweeps: 1,
-        ..CoarseConfig::default()
-    };
-    let mut coarse = CoarseWarmStart::new(config).unwrap();
-    let start = start_of(&mut coarse, &problem, &carried, 1);
-    assert_eq!(coarse.passes_spent(), 3, "a sweep, the correction, a sweep");
+    let start = one_coarse_round(f64::INFINITY, &problem, &carried);
     for (got, want) in start.iter().zip(&answer) {
         assert!(
             (got.normal - want.normal).abs() < 1e-6,
@@ -750,16 +762,7 @@ fn coarse_cells_carry_two_columns_their_loads_where_layers_cannot() {
     // both columns' loads (to the coarse solve's regularisation).
     let (problem, answer, carried) = two_columns_short_and_over(10);
     let worst = |width| {
-        let config = CoarseConfig {
-            rounds: 1,
-            sweeps: 1,
-            width,
-            ..CoarseConfig::default()
-        };
-        let mut coarse = CoarseWarmStart::new(config).unwrap();
-        let start = start_of(&mut coarse, &problem, &carried, 1);
-        assert_eq!(coarse.passes_spent(), 3, "a sweep, the correction, a sweep");
-        start
+        one_coarse_round(width, &problem, &carried)
             .iter()
             .zip(&answer)
             .map(|(got, want)| (got.normal - want.normal).abs())
@@ -783,15 +786,7 @@ fn coarse_cells_far_narrower_than_the_island_do_not_overflow_the_cell_count() {
     // until at most 256 fit (the build before counted them in `usize`, wrapped to none and
     // panicked on an empty cell index).
     let (problem, _, carried) = two_columns_short_and_over(4);
-    let config = CoarseConfig {
-        rounds: 1,
-        sweeps: 1,
-        width: 1e-300,
-        ..CoarseConfig::default()
-    };
-    let mut coarse = CoarseWarmStart::new(config).unwrap();
-    let start = start_of(&mut coarse, &problem, &carried, 1);
-    assert_eq!(coarse.passes_spent(), 3, "a sweep, the correction, a sweep");
+    let start = one_coarse_round(1e-300, &problem, &carried);
     assert!(
         start
             .iter()
