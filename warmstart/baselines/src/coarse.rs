@@ -47,11 +47,9 @@ impl Default for CoarseConfig {
     }
 }
 
-/// Most layers of an island (taller islands get thicker layers).
-const MAX_LAYERS: usize = 128;
-
-/// Most cells of an island (larger islands get larger cells; the coarse solve is dense).
-const MAX_CELLS: usize = 256;
+/// Most cells an island's points span (larger islands get larger cells; the coarse solve is
+/// dense).
+const MAX_GROUPS: usize = 256;
 
 /// Carried impulses corrected on a coarse level of layers between PGS sweeps (see the
 /// module docs). Buffers are kept between calls.
@@ -60,8 +58,8 @@ pub struct CoarseWarmStart {
     config: CoarseConfig,
     inner: InnerSolve,
     solver: PgsSolver,
-    /// Per point: its layer (or cell), or `usize::MAX` when not loaded.
-    layer_of: Vec<usize>,
+    /// Per point: its group (layer or cell), or `usize::MAX` when not loaded.
+    group_of: Vec<usize>,
     /// Per cell: its index among the non-empty cells (scratch).
     cell_index: Vec<usize>,
     /// Row-sized scratch (impulses as rows, a layer's indicator).
@@ -100,7 +98,7 @@ impl CoarseWarmStart {
             config,
             inner,
             solver: PgsSolver::new(),
-            layer_of: Vec::new(),
+            group_of: Vec::new(),
             cell_index: Vec::new(),
             flat: Vec::new(),
             indicator: Vec::new(),
@@ -130,38 +128,10 @@ impl CoarseWarmStart {
         Ok(())
     }
 
-    /// The groups of the loaded points, layers or cells; their count (0: nothing to
-    /// correct).
-    fn layers(&mut self, problem: &ContactProblem, impulses: &[Impulse]) -> usize {
-        if self.config.width.is_finite() {
-            return self.cells(problem, impulses);
-        }
-        let loaded = |k: usize| impulses[k].normal > 0.0;
-        let (lo, hi) = (0..impulses.len())
-            .filter(|&k| loaded(k))
-            .map(|k| problem.points[k].point.y)
-            .fold((Real::INFINITY, Real::NEG_INFINITY), |(lo, hi), y| {
-                (lo.min(y), hi.max(y))
-            });
-        if !(lo.is_finite() && hi.is_finite()) {
-            return 0;
-        }
-        let height = self.config.layer.max((hi - lo) / MAX_LAYERS as Real);
-        let count = (((hi - lo) / height) as usize + 1).min(MAX_LAYERS);
-        self.layer_of.clear();
-        self.layer_of.extend((0..impulses.len()).map(|k| {
-            if loaded(k) {
-                (((problem.points[k].point.y - lo) / height) as usize).min(count - 1)
-            } else {
-                usize::MAX
-            }
-        }));
-        count
-    }
-
-    /// The cells (`layer` × `width`, both grown by a quarter at a time until there are at most
-    /// [`MAX_CELLS`]) of the loaded points; their count (0: nothing to correct).
-    fn cells(&mut self, problem: &ContactProblem, impulses: &[Impulse]) -> usize {
+    /// The groups of the loaded points: cells `layer` high and `width` wide (an infinite width:
+    /// whole layers), both sizes grown by a quarter at a time until at most [`MAX_GROUPS`] cells
+    /// span the points, empty cells dropped; their count (0: nothing to correct).
+    fn groups(&mut self, problem: &ContactProblem, impulses: &[Impulse]) -> usize {
         let loaded = |k: usize| impulses[k].normal > 0.0;
         let mut lo = [Real::INFINITY; 2];
         let mut hi = [Real::NEG_INFINITY; 2];
@@ -178,13 +148,13 @@ impl CoarseWarmStart {
         let (mut w, mut h) = (self.config.width, self.config.layer);
         // Counted in floating point: a tiny cell over a wide island overflows no integer.
         let span = |i: usize, size: Real| ((hi[i] - lo[i]) / size).floor() + 1.0;
-        while span(0, w) * span(1, h) > MAX_CELLS as Real {
+        while span(0, w) * span(1, h) > MAX_GROUPS as Real {
             w *= 1.25;
             h *= 1.25;
         }
         let (cols, rows) = (span(0, w) as usize, span(1, h) as usize);
-        self.layer_of.clear();
-        self.layer_of.extend((0..impulses.len()).map(|k| {
+        self.group_of.clear();
+        self.group_of.extend((0..impulses.len()).map(|k| {
             if loaded(k) {
                 let p = problem.points[k].point;
                 let col = (((p.x - lo[0]) / w) as usize).min(cols - 1);
@@ -198,7 +168,7 @@ impl CoarseWarmStart {
         // cell order.
         self.cell_index.clear();
         self.cell_index.resize(rows * cols, usize::MAX);
-        for &g in self.layer_of.iter().filter(|&&g| g != usize::MAX) {
+        for &g in self.group_of.iter().filter(|&&g| g != usize::MAX) {
             self.cell_index[g] = 0;
         }
         let mut count = 0;
@@ -206,7 +176,7 @@ impl CoarseWarmStart {
             *c = count;
             count += 1;
         }
-        for g in self.layer_of.iter_mut().filter(|g| **g != usize::MAX) {
+        for g in self.group_of.iter_mut().filter(|g| **g != usize::MAX) {
             *g = self.cell_index[*g];
         }
         count
@@ -214,7 +184,7 @@ impl CoarseWarmStart {
 
     /// One coarse correction of `impulses` (normal rows of loaded points, by layer).
     fn correct(&mut self, problem: &ContactProblem, impulses: &mut [Impulse]) {
-        let count = self.layers(problem, impulses);
+        let count = self.groups(problem, impulses);
         if count == 0 {
             return;
         }
@@ -222,7 +192,7 @@ impl CoarseWarmStart {
         velocities_after(problem, impulses, &mut self.flat, &mut self.v);
         self.rhs.clear();
         self.rhs.resize(count, 0.0);
-        for (k, &g) in self.layer_of.iter().enumerate() {
+        for (k, &g) in self.group_of.iter().enumerate() {
             if g != usize::MAX {
                 let p = &problem.points[k];
                 self.rhs[g] += p.velocity_bias - row_velocity(problem, 2 * k, &self.v);
@@ -234,14 +204,14 @@ impl CoarseWarmStart {
         for g in 0..count {
             self.indicator.clear();
             self.indicator.resize(rows, 0.0);
-            for (k, &layer) in self.layer_of.iter().enumerate() {
+            for (k, &layer) in self.group_of.iter().enumerate() {
                 if layer == g {
                     self.indicator[2 * k] = 1.0;
                 }
             }
             self.dv.resize(problem.bodies.len(), Velocity::default());
             apply_jt(problem, &self.indicator, &mut self.dv);
-            for (k, &h) in self.layer_of.iter().enumerate() {
+            for (k, &h) in self.group_of.iter().enumerate() {
                 if h != usize::MAX {
                     self.matrix[h * count + g] += row_velocity(problem, 2 * k, &self.dv);
                 }
@@ -250,7 +220,7 @@ impl CoarseWarmStart {
         if !crate::spd::solve_spd(&mut self.matrix, &mut self.rhs, count, 1e-9, 1e-12) {
             return;
         }
-        for ((imp, p), &g) in impulses.iter_mut().zip(&problem.points).zip(&self.layer_of) {
+        for ((imp, p), &g) in impulses.iter_mut().zip(&problem.points).zip(&self.group_of) {
             if g != usize::MAX {
                 *imp = in_cone(imp.normal + self.rhs[g], imp.tangent, p.friction);
             }
