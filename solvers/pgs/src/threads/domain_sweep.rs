@@ -52,20 +52,16 @@ pub(crate) fn sweep_parts<P: Part>(
 ) -> (Vec<P::Measures>, usize) {
     let n = parts.len();
     let (links, ranges) = (&partition.links, &partition.link_ranges);
-    // The seams' values, from the domains that hold them (both hold the island's value).
-    let shared: Vec<Cell3> = (0..partition.shared.len())
-        .map(|_| Cell3::default())
-        .collect();
-    for (part, range) in parts.iter().zip(ranges) {
-        for &(s, k) in &links[range.clone()] {
-            shared[k as usize].store(part.get(s));
-        }
-    }
+    let seams = seam_values(parts, partition);
     let order: Vec<usize> = sweep_order(n).collect();
     let threads = useful_threads(threads, n);
     if threads == 1 {
-        return (alone(parts, partition, &order, max_iterations, stop), 1);
+        return (
+            alone(parts, partition, seams, &order, max_iterations, stop),
+            1,
+        );
     }
+    let shared: Vec<Cell3> = seams.into_iter().map(Cell3::new).collect();
     // Each domain's lock and measures on cache lines of their own: the threads that sweep
     // neighbouring domains do not pass lines back and forth.
     let parts: Vec<Padded<Mutex<&mut P>>> =
@@ -123,17 +119,12 @@ pub(crate) fn sweep_parts<P: Part>(
 fn alone<P: Part>(
     parts: &mut [P],
     partition: &Partition,
+    mut shared: Vec<[f64; 3]>,
     order: &[usize],
     max_iterations: u32,
     stop: &(dyn Fn(u32, &P::Measures) -> bool + Sync),
 ) -> Vec<P::Measures> {
     let (links, ranges) = (&partition.links, &partition.link_ranges);
-    let mut shared = vec![[0.0; 3]; partition.shared.len()];
-    for (part, range) in parts.iter().zip(ranges) {
-        for &(s, k) in &links[range.clone()] {
-            shared[k as usize] = part.get(s);
-        }
-    }
     let mut done = Vec::with_capacity(max_iterations.min(4096) as usize);
     for it in 0..max_iterations {
         let mut all = P::Measures::default();
@@ -160,4 +151,15 @@ fn alone<P: Part>(
         }
     }
     done
+}
+
+/// The seams' values, from the domains that hold them (both hold the island's value).
+fn seam_values<P: Part>(parts: &[P], partition: &Partition) -> Vec<[f64; 3]> {
+    let mut values = vec![[0.0; 3]; partition.shared.len()];
+    for (part, range) in parts.iter().zip(&partition.link_ranges) {
+        for &(s, k) in &partition.links[range.clone()] {
+            values[k as usize] = part.get(s);
+        }
+    }
+    values
 }
