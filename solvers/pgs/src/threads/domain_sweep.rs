@@ -114,7 +114,7 @@ pub(crate) fn sweep_parts<P: Part>(
 /// same order, so the same bits, without the queue, the locks and the atomics that a second
 /// thread needs. Those cost about as much an iteration whatever the domains hold (a claim, two
 /// locks and the seams' cells a domain, a fold of every domain's measures a phase), so they
-/// weigh most on small domains: a third of the plan's cost over the plain sweep on an island
+/// weigh most on small domains: about half of the plan's cost over the plain sweep on an island
 /// of 1 500 points in four domains (docs/PERFORMANCE.md).
 fn alone<P: Part>(
     parts: &mut [P],
