@@ -1,5 +1,7 @@
 //! Measures the PGS loop in ns per contact point per iteration on a settled pile (in order,
-//! coloured, coloured in batches, and the same in `f32`, `pgs:precision=f32`):
+//! coloured, coloured in batches, the same with islands of 512 points or more in the domain plan on one thread
+//! (`pgs:parallel_from=512`: four domains or more), and coloured in batches in `f32`,
+//! `pgs:precision=f32`):
 //! `cargo run --release -p deepcontact-pgs --example pgs_speed [bodies] [iterations]`.
 
 use std::time::Instant;
@@ -56,10 +58,11 @@ fn main() {
     };
     let points: usize = rec.0.iter().map(|(p, _)| p.len()).sum();
     let variants = [
-        ("sequential", Ordering::Sequential, false, Precision::F64),
-        ("coloured", Ordering::Coloured, false, Precision::F64),
-        ("coloured+lanes", Ordering::Coloured, true, Precision::F64),
-        ("f32", Ordering::Coloured, true, Precision::F32),
+        ("sequential", Ordering::Sequential, false, Precision::F64, usize::MAX),
+        ("coloured", Ordering::Coloured, false, Precision::F64, usize::MAX),
+        ("coloured+lanes", Ordering::Coloured, true, Precision::F64, usize::MAX),
+        ("domains", Ordering::Coloured, true, Precision::F64, 512),
+        ("f32", Ordering::Coloured, true, Precision::F32, usize::MAX),
     ];
     println!(
         "{bodies} bodies, {points} points in {} islands, {iterations} iterations (best of 5, side by side):",
@@ -67,11 +70,12 @@ fn main() {
     );
     let mut results: Vec<Vec<Impulse>> = Vec::new();
     let mut times = Vec::new();
-    for (name, ordering, lanes, precision) in variants {
+    for (name, ordering, lanes, precision, parallel_min_points) in variants {
         let mut solver = PgsSolver::with_settings(PgsSettings {
             ordering,
             lanes,
             precision,
+            parallel_min_points,
             ..PgsSettings::default()
         });
         let mut report = SolveReport::default();

@@ -370,26 +370,44 @@ impl PgsSolver {
     /// Inlined into [`Self::solve_loop`]'s instruction-set context.
     #[inline(always)]
     pub(crate) fn iterate<const CONTACT: bool, K: BatchKernel>(&mut self, kernel: K) -> Sweep {
-        let mut acc = Sweep::default();
-        if self.segments.is_empty() {
-            for m in &self.manifolds {
-                sweep_manifold::<CONTACT, _>(m, &mut self.rows, self.vel.as_mut_slice(), &mut acc);
-            }
-            return acc;
-        }
-        let mut lanes = LaneSweep::default();
-        for seg in &self.segments {
-            kernel.sweep::<CONTACT>(
-                &mut self.batches[seg.batches.clone()],
-                self.vel.as_mut_slice(),
-                &mut lanes,
-            );
-            for m in &self.scratch[seg.manifolds.clone()] {
-                sweep_manifold::<CONTACT, _>(m, &mut self.rows, self.vel.as_mut_slice(), &mut acc);
-            }
-        }
-        acc.add_lanes(&lanes);
-        acc
+        let (plan, vel) = self.plan();
+        plan.sweep::<CONTACT, K>(kernel, vel)
+    }
+
+    /// [`Self::iterate`] on the velocities `vel` instead of the solver's own: those of the
+    /// island a domain of the domain plan belongs to, when the domains share one thread and
+    /// the plan's bodies are the island's ([`crate::velocity::domains`]).
+    #[inline(always)]
+    pub(crate) fn iterate_on<const CONTACT: bool, K: BatchKernel>(
+        &mut self,
+        kernel: K,
+        vel: &mut [Vel],
+    ) -> Sweep {
+        self.plan().0.sweep::<CONTACT, K>(kernel, vel)
+    }
+
+    /// The sweep plan, apart from the velocities it sweeps.
+    #[inline(always)]
+    fn plan(&mut self) -> (Plan<'_>, &mut [Vel]) {
+        let Self {
+            manifolds,
+            segments,
+            batches,
+            scratch,
+            rows,
+            vel,
+            ..
+        } = self;
+        (
+            Plan {
+                manifolds,
+                segments,
+                batches,
+                serial: scratch,
+                rows,
+            },
+            vel,
+        )
     }
 
     /// Stage 3's loop on this thread: sweep until the stop rule holds, the cap is reached or
@@ -483,6 +501,42 @@ impl PgsSolver {
     }
 }
 
+/// A solver's sweep plan, borrowed apart from the velocities it sweeps: the manifolds (swept
+/// one at a time when there are no segments), the segments of batches and one-at-a-time
+/// manifolds, and the rows.
+struct Plan<'a> {
+    manifolds: &'a [Manifold],
+    segments: &'a [Segment],
+    batches: &'a mut [Batch],
+    serial: &'a [Manifold],
+    rows: &'a mut [Row],
+}
+
+impl Plan<'_> {
+    /// One Gauss-Seidel sweep over `vel`: each segment's batches, then its one-at-a-time
+    /// manifolds. Returns the impulse changes' measures (the per-contact one only with
+    /// `CONTACT`).
+    #[inline(always)]
+    fn sweep<const CONTACT: bool, K: BatchKernel>(self, kernel: K, vel: &mut [Vel]) -> Sweep {
+        let mut acc = Sweep::default();
+        if self.segments.is_empty() {
+            for m in self.manifolds {
+                sweep_manifold::<CONTACT, _>(m, self.rows, vel, &mut acc);
+            }
+            return acc;
+        }
+        let mut lanes = LaneSweep::default();
+        for seg in self.segments {
+            kernel.sweep::<CONTACT>(&mut self.batches[seg.batches.clone()], vel, &mut lanes);
+            for m in &self.serial[seg.manifolds.clone()] {
+                sweep_manifold::<CONTACT, _>(m, self.rows, vel, &mut acc);
+            }
+        }
+        acc.add_lanes(&lanes);
+        acc
+    }
+}
+
 /// [`PgsSolver::solve_loop`] as an operation of [`pulp::Arch::dispatch`]: the whole
 /// iteration loop (every sweep, its kernels inlined) compiled once per instruction set — with
 /// AVX2 and FMA enabled, each lane field of a [`Batch`] is one 256-bit register. The
@@ -557,6 +611,7 @@ impl PgsSolver {
                 self.arch,
                 settings,
                 report,
+                &mut self.vel,
             );
             self.domains.write_back(&mut self.rows, &mut self.vel);
             run
@@ -1285,7 +1340,7 @@ mod tests {
                 &solver.vel,
                 solver.settings,
             );
-            let run = d.solve(threads, solver.arch, stop, report);
+            let run = d.solve(threads, solver.arch, stop, report, &mut solver.vel);
             d.write_back(&mut solver.rows, &mut solver.vel);
             // No more threads than the 4 even domains.
             assert_eq!(run.2, threads.min(4), "threads that ran");

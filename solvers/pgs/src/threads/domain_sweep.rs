@@ -30,7 +30,7 @@ pub(crate) trait Part: Send {
 }
 
 /// The domains of `n` in sweep order: the even ones, then the odd ones.
-fn sweep_order(n: usize) -> impl Iterator<Item = usize> {
+pub(crate) fn sweep_order(n: usize) -> impl Iterator<Item = usize> {
     (0..n).step_by(2).chain((1..n).step_by(2))
 }
 
@@ -114,8 +114,8 @@ pub(crate) fn sweep_parts<P: Part>(
 /// same order, so the same bits, without the queue, the locks and the atomics that a second
 /// thread needs. Those cost about as much an iteration whatever the domains hold (a claim, two
 /// locks and the seams' cells a domain, a fold of every domain's measures a phase), so they
-/// weigh most on small domains: about half of the plan's cost over the plain sweep on an island
-/// of 1 500 points in four domains (docs/PERFORMANCE.md).
+/// weigh most on small domains. (The velocity sweep's plan on one thread does without the
+/// hand-overs too: its domains sweep the island's own velocities, `velocity::domains`.)
 fn alone<P: Part>(
     parts: &mut [P],
     partition: &Partition,

@@ -4,12 +4,21 @@
 //! sweep — its rows, its bodies (renumbered in order), its colours and batches — so a domain is
 //! swept by the ordinary one-thread loop (lanes and all) on memory no other thread touches
 //! while it runs, and [`sweep_parts`] runs the iterations.
+//!
+//! On one thread no other thread touches anything, so the domains' plans are pointed at the
+//! island's own velocities instead ([`repoint`]) and swept in the same order in one loop
+//! ([`OnIsland`]): a seam body's value is then where the last domain to sweep it left it,
+//! which is what the hand-overs give, so the bits are the same without the hand-overs
+//! (docs/PERFORMANCE.md, "The domain plan on one thread, per pass").
 
 use deepcontact_core::{ResidualNorm, SolveReport, SolverSettings};
 
-use crate::threads::domain_sweep::{Part, sweep_parts};
+use crate::threads::domain_sweep::{Part, sweep_order, sweep_parts, useful_threads};
 use crate::threads::partition::Partition;
-use crate::velocity::{Manifold, PgsSettings, PgsSolver, Row, Sweep, Vel, Verdict, judge, movable};
+use crate::velocity::{
+    BatchKernel, KernelOp, LANES, Manifold, PgsSettings, PgsSolver, Row, Sweep, Vel, Verdict,
+    judge, movable,
+};
 
 /// The domains of the domain plan, rebuilt for every solve (buffers reused).
 #[derive(Debug, Clone, Default)]
@@ -22,13 +31,17 @@ pub(crate) struct Domains {
     pub(crate) rows_of: Vec<Vec<u32>>,
     /// Per building thread, each island body's slot in the domain it builds (scratch).
     slots: Vec<Vec<u32>>,
+    /// Whether the domains are swept on one thread, their plans pointed at the island's
+    /// velocities ([`repoint`]).
+    on_island: bool,
 }
 
 impl Domains {
     /// Cuts the island (`manifolds`, `rows`, `vel`: the solver's, after the warm start, bodies
     /// in Z-order) into `n` domains (1 to [`MAX_DOMAINS`](crate::MAX_DOMAINS), clamped) and
     /// builds each domain's sweep plan, the domains side by side on up to `threads` threads (≥ 1;
-    /// a domain's plan does not depend on the thread).
+    /// a domain's plan does not depend on the thread). When the solve will run on one thread
+    /// ([`useful_threads`]), the plans are pointed at the island's velocities `vel`.
     pub(crate) fn build(
         &mut self,
         n: usize,
@@ -61,16 +74,25 @@ impl Domains {
                 build_part(p, part, rows_of, partition, slot, &island);
             },
         );
+        self.on_island = useful_threads(threads, n) == 1;
+        if self.on_island {
+            for (part, bodies) in self.parts.iter_mut().zip(&self.partition.bodies_of) {
+                repoint(part, bodies, vel.len());
+            }
+        }
     }
 
     /// Copies the domains' impulses back into the island's rows and their velocities into the
     /// island's (a seam body's are the same in both its domains after a solve; an immovable
-    /// body's are never written).
+    /// body's are never written; swept on the island's velocities, there is nothing to copy).
     pub(crate) fn write_back(&mut self, rows: &mut [Row], vel: &mut [Vel]) {
         for (p, part) in self.parts.iter_mut().enumerate() {
             part.sync_rows();
             for (r, &g) in part.rows.iter().zip(&self.rows_of[p]) {
                 rows[g as usize] = *r;
+            }
+            if self.on_island {
+                continue;
             }
             for (v, &g) in part.vel.iter().zip(&self.partition.bodies_of[p]) {
                 vel[g as usize] = *v;
@@ -79,15 +101,36 @@ impl Domains {
     }
 
     /// Stage 3's loop in the domain plan on up to `threads` threads (≥ 1; no more than half
-    /// the domains, rounded up). Returns the iterations run and the last verdict, as the one-thread loop
-    /// does, and the threads it ran on; `report` gets the residual of every iteration.
+    /// the domains, rounded up; `vel`: the island's velocities). Returns the iterations run and
+    /// the last verdict, as the one-thread loop does, and the threads it ran on; `report` gets
+    /// the residual of every iteration.
     pub(crate) fn solve(
         &mut self,
         threads: usize,
         arch: pulp::Arch,
         settings: &SolverSettings,
         report: &mut SolveReport,
+        vel: &mut Vec<Vel>,
     ) -> (u32, Verdict, usize) {
+        if self.on_island {
+            // The padding lanes' dummy body and the sink after the island's bodies, as a
+            // domain's own velocities have them ([`repoint`]).
+            let bodies = vel.len();
+            vel.extend([Vel::default(); 2]);
+            let order: Vec<usize> = sweep_order(self.parts.len()).collect();
+            let (it, verdict) = crate::velocity::dispatch(
+                arch,
+                OnIsland {
+                    parts: &mut self.parts,
+                    order: &order,
+                    vel,
+                    settings,
+                    report,
+                },
+            );
+            vel.truncate(bodies);
+            return (it, verdict, 1);
+        }
         let contact = settings.norm == ResidualNorm::Contact;
         let mut parts: Vec<VelocityPart<'_>> = self
             .parts
@@ -176,6 +219,66 @@ fn build_part(
         .sort_unstable_by_key(|m| (m.a.min(m.b), m.a.max(m.b), m.start));
     part.reset_plan();
     part.colour(bodies.len(), None);
+}
+
+/// Points domain `part`'s plan (its batches' lanes and its one-at-a-time manifolds) at the
+/// island's velocities: its slot `s` becomes island body `bodies[s]`, and the padding lanes'
+/// dummy and the sink after its bodies become those after the island's `island` bodies.
+fn repoint(part: &mut PgsSolver, bodies: &[u32], island: usize) {
+    let own = bodies.len() as u32;
+    let at = |s: u32| match s.checked_sub(own) {
+        None => bodies[s as usize],
+        Some(k) => island as u32 + k,
+    };
+    for batch in &mut part.batches {
+        for lane in 0..LANES {
+            batch.a[lane] = at(batch.a[lane]);
+            batch.b[lane] = at(batch.b[lane]);
+            batch.wa[lane] = at(batch.wa[lane]);
+            batch.wb[lane] = at(batch.wb[lane]);
+        }
+    }
+    for m in &mut part.scratch {
+        (m.a, m.b) = (at(m.a), at(m.b));
+    }
+}
+
+/// The domains swept one after another on the island's velocities, in the phased loop's order
+/// (even domains, then odd), each iteration's measures folded in that order, until the stop
+/// rule holds or the cap is reached: [`sweep_parts`] on one thread without the hand-overs.
+struct OnIsland<'a> {
+    parts: &'a mut [PgsSolver],
+    order: &'a [usize],
+    vel: &'a mut [Vel],
+    settings: &'a SolverSettings,
+    report: &'a mut SolveReport,
+}
+
+impl KernelOp for OnIsland<'_> {
+    type Output = (u32, Verdict);
+
+    #[inline(always)]
+    fn run<K: BatchKernel>(self, kernel: K) -> Self::Output {
+        let contact = self.settings.norm == ResidualNorm::Contact;
+        let mut it = 0;
+        while it < self.settings.max_iterations {
+            let mut all = Sweep::default();
+            for &p in self.order {
+                let part = &mut self.parts[p];
+                all.add(&if contact {
+                    part.iterate_on::<true, K>(kernel, self.vel)
+                } else {
+                    part.iterate_on::<false, K>(kernel, self.vel)
+                });
+            }
+            it += 1;
+            match judge(self.settings, it, &all, Some(self.report)) {
+                Verdict::Continue => {}
+                end => return (it, end),
+            }
+        }
+        (it, Verdict::Continue)
+    }
 }
 
 /// A domain of the velocity sweep: its solver, swept in the instruction set chosen at run time.
