@@ -58,9 +58,27 @@ fn main() {
     };
     let points: usize = rec.0.iter().map(|(p, _)| p.len()).sum();
     let variants = [
-        ("sequential", Ordering::Sequential, false, Precision::F64, usize::MAX),
-        ("coloured", Ordering::Coloured, false, Precision::F64, usize::MAX),
-        ("coloured+lanes", Ordering::Coloured, true, Precision::F64, usize::MAX),
+        (
+            "sequential",
+            Ordering::Sequential,
+            false,
+            Precision::F64,
+            usize::MAX,
+        ),
+        (
+            "coloured",
+            Ordering::Coloured,
+            false,
+            Precision::F64,
+            usize::MAX,
+        ),
+        (
+            "coloured+lanes",
+            Ordering::Coloured,
+            true,
+            Precision::F64,
+            usize::MAX,
+        ),
         ("domains", Ordering::Coloured, true, Precision::F64, 512),
         ("f32", Ordering::Coloured, true, Precision::F32, usize::MAX),
     ];
