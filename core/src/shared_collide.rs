@@ -344,14 +344,19 @@ fn bounds_chunk(bodies: &[Body], c: usize, margin: Real, inv: Real, chunk: &mut 
     let own = &mut chunk.bounds;
     own.clear();
     chunk.cells = CellBox::default();
-    for (i, b) in bodies[start..end].iter().enumerate() {
+    // Bounds first, then the binning, as `BroadPhase::find_pairs` does: the shape's AABB is a
+    // virtual call, across which one loop would keep the binning's state live (one loop: the
+    // bounds phase ≈ 1.3 × as long, docs/PERFORMANCE.md).
+    for b in &bodies[start..end] {
         let (aabb, pose) = bound(b, margin);
         own.aabbs.push(aabb);
         own.poses.push(pose);
         own.kinds.push(b.kind);
+    }
+    for (i, aabb) in own.aabbs.iter().enumerate() {
         bin_body(
             (start + i) as u32,
-            &aabb,
+            aabb,
             inv,
             &mut own.first,
             &mut own.entries,
