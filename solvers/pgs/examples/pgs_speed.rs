@@ -1,7 +1,7 @@
 //! Measures the PGS loop in ns per contact point per iteration on a settled pile (in order,
-//! coloured, coloured in batches, the same with islands of 512 points or more in the domain plan on one thread
-//! (`pgs:parallel_from=512`: four domains or more), and coloured in batches in `f32`,
-//! `pgs:precision=f32`):
+//! coloured, coloured in batches, the same with islands of 512 points or more in the domain
+//! plan on one thread (`pgs:parallel_from=512`: four domains or more), and coloured in batches
+//! in `f32`, `pgs:precision=f32`):
 //! `cargo run --release -p deepcontact-pgs --example pgs_speed [bodies] [iterations]`.
 
 use std::time::Instant;
