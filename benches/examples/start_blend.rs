@@ -4,7 +4,10 @@
 //! (`--oracle`, default the `copy` oracle solved to 1e-5): `carried + w (oracle − carried)` for
 //! each blend `w` of `--blends`, on the rows `--rows` names (`both`, `normal`: the tangent rows
 //! keep the carried impulses, or `tangent`). Each run's velocity iterations, capped islands and
-//! natural residual are printed, then the totals per blend.
+//! natural residual are printed, then the totals per blend. Providers named with `--starts` run
+//! the same steps from their own start, and their start's distance to the oracle's (over every
+//! row, `‖start − oracle‖`) is printed as a fraction of the carried impulses' distance to it:
+//! 1 − w for a blend `w`.
 //!
 //! ```sh
 //! cargo run --release -p deepcontact-benches --example start_blend -- \
@@ -19,7 +22,8 @@ use deepcontact_pgs::PgsPositionSolver;
 
 const USAGE: &str = "usage: start_blend [--bodies 1000] [--seeds 100..104] \
 [--steps 160,180,200,220,240] [--blends 0.5,0.9,0.99,0.999] [--rows both|normal|tangent] \
-[--drive builtin] [--oracle copy:max_iterations=100000,tolerance=1e-5] [--solver pgs]";
+[--drive builtin] [--oracle copy:max_iterations=100000,tolerance=1e-5] [--solver pgs] \
+[--starts PROVIDER,...]";
 
 /// Which rows of the start the oracle moves.
 #[derive(Clone, Copy, PartialEq)]
@@ -67,6 +71,49 @@ impl WarmStart for Blend {
     }
 }
 
+/// A provider's start, measured against the carried impulses' and an oracle's.
+struct Measured {
+    start: Box<dyn WarmStart>,
+    carried: Box<dyn WarmStart>,
+    oracle: Box<dyn WarmStart>,
+    /// `Σ ‖start − oracle‖²` and `Σ ‖carried − oracle‖²` over the rows seen.
+    sums: [f64; 2],
+    scratch: [Vec<Impulse>; 2],
+}
+
+impl WarmStart for Measured {
+    fn name(&self) -> &str {
+        "measured"
+    }
+
+    fn warm_start(
+        &mut self,
+        ctx: &WarmStartContext<'_>,
+        out: &mut [Impulse],
+    ) -> Result<(), WarmStartError> {
+        let [c, o] = &mut self.scratch;
+        c.clear();
+        c.resize(out.len(), Impulse::ZERO);
+        o.clear();
+        o.resize(out.len(), Impulse::ZERO);
+        self.carried.warm_start(ctx, c)?;
+        self.oracle.warm_start(ctx, o)?;
+        self.start.warm_start(ctx, out)?;
+        let d2 = |a: &Impulse, b: &Impulse| {
+            (a.normal - b.normal).powi(2) + (a.tangent - b.tangent).powi(2)
+        };
+        for ((s, c), o) in out.iter().zip(c.iter()).zip(o.iter()) {
+            self.sums[0] += d2(s, o);
+            self.sums[1] += d2(c, o);
+        }
+        Ok(())
+    }
+
+    fn passes_spent(&self) -> u32 {
+        self.start.passes_spent()
+    }
+}
+
 fn main() {
     if let Err(e) = run() {
         eprintln!("start_blend: {e}\n{USAGE}");
@@ -82,6 +129,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     let mut rows = Rows::Both;
     let (mut drive, mut solver_spec) = ("builtin".to_string(), "pgs".to_string());
     let mut oracle = "copy:max_iterations=100000,tolerance=1e-5".to_string();
+    let mut starts: Vec<String> = Vec::new();
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         let mut value = || args.next().ok_or(format!("{a} needs a value"));
@@ -101,6 +149,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
             "--drive" => drive = value()?,
             "--oracle" => oracle = value()?,
             "--solver" => solver_spec = value()?,
+            "--starts" => starts = value()?.split(',').map(str::to_string).collect(),
             "-h" | "--help" => {
                 println!("{USAGE}");
                 return Ok(());
@@ -116,6 +165,8 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     let registry = deepcontact_experiments::full_registry();
     // Per blend: runs, capped islands, velocity iterations.
     let mut totals = vec![(0usize, 0usize, 0u64); blends.len()];
+    // Per named start: the same, and each step's distance to the oracle (fraction of carried's).
+    let mut measured = vec![((0usize, 0usize, 0u64), Vec::new()); starts.len()];
     for &seed in &seeds {
         let mut driver = registry.build_provider(&drive)?;
         let mut solver = registry.build_solver(&solver_spec)?;
@@ -152,6 +203,32 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
                     r.velocity_iterations, r.capped_islands, r.natural_residual
                 );
             }
+            for ((total, distances), spec) in measured.iter_mut().zip(&starts) {
+                let mut start = Measured {
+                    start: registry.build_provider(spec)?,
+                    carried: registry.build_provider(&drive)?,
+                    oracle: registry.build_provider(&oracle)?,
+                    sums: [0.0; 2],
+                    scratch: Default::default(),
+                };
+                let mut resolver = registry.build_solver(&solver_spec)?;
+                let r = world.clone().step(
+                    &mut start,
+                    resolver.as_mut(),
+                    &mut PgsPositionSolver::new(),
+                )?;
+                *total = (
+                    total.0 + 1,
+                    total.1 + r.capped_islands,
+                    total.2 + u64::from(r.velocity_iterations),
+                );
+                let distance = (start.sums[0] / start.sums[1]).sqrt();
+                distances.push(distance);
+                line += &format!(
+                    "  {spec}: {} it, {} capped, {:.2e}, distance {distance:.3}",
+                    r.velocity_iterations, r.capped_islands, r.natural_residual
+                );
+            }
             println!("{line}");
         }
     }
@@ -159,6 +236,18 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         println!(
             "w {blend}: {capped} capped islands over {runs} steps, {:.0} velocity iterations a step",
             *iterations as f64 / (*runs).max(1) as f64
+        );
+    }
+    for (((runs, capped, iterations), distances), spec) in measured.iter_mut().zip(&starts) {
+        distances.sort_by(f64::total_cmp);
+        println!(
+            "{spec}: {capped} capped islands over {runs} steps, {:.0} velocity iterations a step, \
+             distance to the oracle {:.3} of the carried impulses' (median over the steps)",
+            *iterations as f64 / (*runs).max(1) as f64,
+            distances
+                .get(distances.len() / 2)
+                .copied()
+                .unwrap_or(f64::NAN)
         );
     }
     Ok(())
