@@ -5,9 +5,9 @@
 //! each blend `w` of `--blends`, on the rows `--rows` names (`both`, `normal`: the tangent rows
 //! keep the carried impulses, or `tangent`). Each run's velocity iterations, capped islands and
 //! natural residual are printed, then the totals per blend. Providers named with `--starts` run
-//! the same steps from their own start, and their start's distance to the oracle's (over every
-//! row, `‖start − oracle‖`) is printed as a fraction of the carried impulses' distance to it:
-//! 1 − w for a blend `w`.
+//! the same steps from their own start. Every start's distance to the oracle's (over every row,
+//! `‖start − oracle‖`) is printed as a fraction of the carried impulses' distance to it (1 − w for
+//! a blend `w` on every row).
 //!
 //! ```sh
 //! cargo run --release -p deepcontact-benches --example start_blend -- \
@@ -33,47 +33,17 @@ enum Rows {
     Tangent,
 }
 
-/// The carried impulses moved a fraction `blend` of the way to the oracle's, on `rows`.
-struct Blend {
-    carried: Box<dyn WarmStart>,
-    oracle: Box<dyn WarmStart>,
-    blend: f64,
-    rows: Rows,
-    scratch: [Vec<Impulse>; 2],
+/// A start that the example runs a step from.
+enum Kind {
+    /// The carried impulses moved a fraction `w` of the way to the oracle's, on `rows`.
+    Blend { w: f64, rows: Rows },
+    /// A provider's own start, its distance to the oracle's summed in [`Start::sums`].
+    Provider(Box<dyn WarmStart>),
 }
 
-impl WarmStart for Blend {
-    fn name(&self) -> &str {
-        "blend"
-    }
-
-    fn warm_start(
-        &mut self,
-        ctx: &WarmStartContext<'_>,
-        out: &mut [Impulse],
-    ) -> Result<(), WarmStartError> {
-        let [a, b] = &mut self.scratch;
-        a.clear();
-        a.resize(out.len(), Impulse::ZERO);
-        b.clear();
-        b.resize(out.len(), Impulse::ZERO);
-        self.carried.warm_start(ctx, a)?;
-        self.oracle.warm_start(ctx, b)?;
-        let w = self.blend;
-        let towards = |x: f64, y: f64, on: bool| if on { x + w * (y - x) } else { x };
-        for ((o, x), y) in out.iter_mut().zip(a.iter()).zip(b.iter()) {
-            *o = Impulse::new(
-                towards(x.normal, y.normal, self.rows != Rows::Tangent),
-                towards(x.tangent, y.tangent, self.rows != Rows::Normal),
-            );
-        }
-        Ok(())
-    }
-}
-
-/// A provider's start, measured against the carried impulses' and an oracle's.
-struct Measured {
-    start: Box<dyn WarmStart>,
+/// A start beside the two it is measured against: the carried impulses' and the oracle's.
+struct Start {
+    kind: Kind,
     carried: Box<dyn WarmStart>,
     oracle: Box<dyn WarmStart>,
     /// `Σ ‖start − oracle‖²` and `Σ ‖carried − oracle‖²` over the rows seen.
@@ -81,9 +51,9 @@ struct Measured {
     scratch: [Vec<Impulse>; 2],
 }
 
-impl WarmStart for Measured {
+impl WarmStart for Start {
     fn name(&self) -> &str {
-        "measured"
+        "start_blend"
     }
 
     fn warm_start(
@@ -92,13 +62,23 @@ impl WarmStart for Measured {
         out: &mut [Impulse],
     ) -> Result<(), WarmStartError> {
         let [c, o] = &mut self.scratch;
-        c.clear();
-        c.resize(out.len(), Impulse::ZERO);
-        o.clear();
-        o.resize(out.len(), Impulse::ZERO);
-        self.carried.warm_start(ctx, c)?;
-        self.oracle.warm_start(ctx, o)?;
-        self.start.warm_start(ctx, out)?;
+        for (v, provider) in [(&mut *c, &mut self.carried), (&mut *o, &mut self.oracle)] {
+            v.clear();
+            v.resize(out.len(), Impulse::ZERO);
+            provider.warm_start(ctx, v)?;
+        }
+        match &mut self.kind {
+            Kind::Blend { w, rows } => {
+                let towards = |x: f64, y: f64, on: bool| if on { x + *w * (y - x) } else { x };
+                for ((s, x), y) in out.iter_mut().zip(c.iter()).zip(o.iter()) {
+                    *s = Impulse::new(
+                        towards(x.normal, y.normal, *rows != Rows::Tangent),
+                        towards(x.tangent, y.tangent, *rows != Rows::Normal),
+                    );
+                }
+            }
+            Kind::Provider(p) => p.warm_start(ctx, out)?,
+        }
         let d2 = |a: &Impulse, b: &Impulse| {
             (a.normal - b.normal).powi(2) + (a.tangent - b.tangent).powi(2)
         };
@@ -110,8 +90,21 @@ impl WarmStart for Measured {
     }
 
     fn passes_spent(&self) -> u32 {
-        self.start.passes_spent()
+        match &self.kind {
+            Kind::Blend { .. } => 0,
+            Kind::Provider(p) => p.passes_spent(),
+        }
     }
+}
+
+/// What the runs from one start add up to: steps, capped islands, velocity iterations, and
+/// each step's distance to the oracle's start as a fraction of the carried impulses'.
+#[derive(Default)]
+struct Totals {
+    runs: usize,
+    capped: usize,
+    iterations: u64,
+    distances: Vec<f64>,
 }
 
 fn main() {
@@ -159,14 +152,17 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     }
     steps.sort_unstable();
     steps.dedup();
-    if steps.is_empty() || blends.is_empty() {
-        return Err("name at least one step and one blend".into());
+    if steps.is_empty() || blends.len() + starts.len() == 0 {
+        return Err("name at least one step, and a blend or a start".into());
     }
     let registry = deepcontact_experiments::full_registry();
-    // Per blend: runs, capped islands, velocity iterations.
-    let mut totals = vec![(0usize, 0usize, 0u64); blends.len()];
-    // Per named start: the same, and each step's distance to the oracle (fraction of carried's).
-    let mut measured = vec![((0usize, 0usize, 0u64), Vec::new()); starts.len()];
+    // The starts: the blends, then the named providers.
+    let labels: Vec<String> = blends
+        .iter()
+        .map(|w| format!("w {w}"))
+        .chain(starts.iter().cloned())
+        .collect();
+    let mut totals: Vec<Totals> = labels.iter().map(|_| Totals::default()).collect();
     for &seed in &seeds {
         let mut driver = registry.build_provider(&drive)?;
         let mut solver = registry.build_solver(&solver_spec)?;
@@ -179,33 +175,13 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
                 at += 1;
             }
             let mut line = format!("seed {seed} step {step}:");
-            for (total, &blend) in totals.iter_mut().zip(&blends) {
-                let mut start = Blend {
-                    carried: registry.build_provider(&drive)?,
-                    oracle: registry.build_provider(&oracle)?,
-                    blend,
-                    rows,
-                    scratch: Default::default(),
+            for (k, (total, label)) in totals.iter_mut().zip(&labels).enumerate() {
+                let kind = match blends.get(k) {
+                    Some(&w) => Kind::Blend { w, rows },
+                    None => Kind::Provider(registry.build_provider(&starts[k - blends.len()])?),
                 };
-                let mut resolver = registry.build_solver(&solver_spec)?;
-                let r = world.clone().step(
-                    &mut start,
-                    resolver.as_mut(),
-                    &mut PgsPositionSolver::new(),
-                )?;
-                *total = (
-                    total.0 + 1,
-                    total.1 + r.capped_islands,
-                    total.2 + u64::from(r.velocity_iterations),
-                );
-                line += &format!(
-                    "  w {blend}: {} it, {} capped, {:.2e}",
-                    r.velocity_iterations, r.capped_islands, r.natural_residual
-                );
-            }
-            for ((total, distances), spec) in measured.iter_mut().zip(&starts) {
-                let mut start = Measured {
-                    start: registry.build_provider(spec)?,
+                let mut start = Start {
+                    kind,
                     carried: registry.build_provider(&drive)?,
                     oracle: registry.build_provider(&oracle)?,
                     sums: [0.0; 2],
@@ -217,35 +193,30 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
                     resolver.as_mut(),
                     &mut PgsPositionSolver::new(),
                 )?;
-                *total = (
-                    total.0 + 1,
-                    total.1 + r.capped_islands,
-                    total.2 + u64::from(r.velocity_iterations),
-                );
                 let distance = (start.sums[0] / start.sums[1]).sqrt();
-                distances.push(distance);
+                total.runs += 1;
+                total.capped += r.capped_islands;
+                total.iterations += u64::from(r.velocity_iterations);
+                total.distances.push(distance);
                 line += &format!(
-                    "  {spec}: {} it, {} capped, {:.2e}, distance {distance:.3}",
+                    "  {label}: {} it, {} capped, {:.2e}, distance {distance:.3}",
                     r.velocity_iterations, r.capped_islands, r.natural_residual
                 );
             }
             println!("{line}");
         }
     }
-    for ((runs, capped, iterations), blend) in totals.iter().zip(&blends) {
+    for (total, label) in totals.iter_mut().zip(&labels) {
+        total.distances.sort_by(f64::total_cmp);
         println!(
-            "w {blend}: {capped} capped islands over {runs} steps, {:.0} velocity iterations a step",
-            *iterations as f64 / (*runs).max(1) as f64
-        );
-    }
-    for (((runs, capped, iterations), distances), spec) in measured.iter_mut().zip(&starts) {
-        distances.sort_by(f64::total_cmp);
-        println!(
-            "{spec}: {capped} capped islands over {runs} steps, {:.0} velocity iterations a step, \
+            "{label}: {} capped islands over {} steps, {:.0} velocity iterations a step, \
              distance to the oracle {:.3} of the carried impulses' (median over the steps)",
-            *iterations as f64 / (*runs).max(1) as f64,
-            distances
-                .get(distances.len() / 2)
+            total.capped,
+            total.runs,
+            total.iterations as f64 / total.runs.max(1) as f64,
+            total
+                .distances
+                .get(total.distances.len() / 2)
                 .copied()
                 .unwrap_or(f64::NAN)
         );
@@ -253,12 +224,14 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     Ok(())
 }
 
-/// A comma-separated list of numbers.
+/// A comma-separated list of numbers (empty items skipped).
 fn list<T: std::str::FromStr>(text: &str) -> Result<Vec<T>, String>
 where
     T::Err: std::fmt::Display,
 {
     text.split(',')
-        .map(|s| s.trim().parse().map_err(|e| format!("`{}`: {e}", s.trim())))
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .map(|s| s.parse().map_err(|e| format!("`{s}`: {e}")))
         .collect()
 }
