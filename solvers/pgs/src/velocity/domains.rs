@@ -16,8 +16,8 @@ use deepcontact_core::{ResidualNorm, SolveReport, SolverSettings};
 use crate::threads::domain_sweep::{Part, sweep_order, sweep_parts, useful_threads};
 use crate::threads::partition::Partition;
 use crate::velocity::{
-    BatchKernel, KernelOp, LANES, Manifold, PgsSettings, PgsSolver, Row, Sweep, Vel, Verdict,
-    judge, movable,
+    BatchKernel, LANES, Manifold, PgsSettings, PgsSolver, Row, SolveLoop, Sweep, Sweeps, Vel,
+    Verdict, judge, movable,
 };
 
 /// The domains of the domain plan, rebuilt for every solve (buffers reused).
@@ -120,10 +120,12 @@ impl Domains {
             let order: Vec<usize> = sweep_order(self.parts.len()).collect();
             let (it, verdict) = crate::velocity::dispatch(
                 arch,
-                OnIsland {
-                    parts: &mut self.parts,
-                    order: &order,
-                    vel,
+                SolveLoop {
+                    sweeps: &mut OnIsland {
+                        parts: &mut self.parts,
+                        order: &order,
+                        vel,
+                    },
                     settings,
                     report,
                 },
@@ -244,40 +246,22 @@ fn repoint(part: &mut PgsSolver, bodies: &[u32], island: usize) {
 }
 
 /// The domains swept one after another on the island's velocities, in the phased loop's order
-/// (even domains, then odd), each iteration's measures folded in that order, until the stop
-/// rule holds or the cap is reached: [`sweep_parts`] on one thread without the hand-overs.
+/// (even domains, then odd), each sweep's measures folded in that order: [`sweep_parts`] on one
+/// thread without the hand-overs.
 struct OnIsland<'a> {
     parts: &'a mut [PgsSolver],
     order: &'a [usize],
     vel: &'a mut [Vel],
-    settings: &'a SolverSettings,
-    report: &'a mut SolveReport,
 }
 
-impl KernelOp for OnIsland<'_> {
-    type Output = (u32, Verdict);
-
+impl Sweeps for OnIsland<'_> {
     #[inline(always)]
-    fn run<K: BatchKernel>(self, kernel: K) -> Self::Output {
-        let contact = self.settings.norm == ResidualNorm::Contact;
-        let mut it = 0;
-        while it < self.settings.max_iterations {
-            let mut all = Sweep::default();
-            for &p in self.order {
-                let part = &mut self.parts[p];
-                all.add(&if contact {
-                    part.iterate_on::<true, K>(kernel, self.vel)
-                } else {
-                    part.iterate_on::<false, K>(kernel, self.vel)
-                });
-            }
-            it += 1;
-            match judge(self.settings, it, &all, Some(self.report)) {
-                Verdict::Continue => {}
-                end => return (it, end),
-            }
+    fn sweep_once<const CONTACT: bool, K: BatchKernel>(&mut self, kernel: K) -> Sweep {
+        let mut all = Sweep::default();
+        for &p in self.order {
+            all.add(&self.parts[p].iterate_on::<CONTACT, K>(kernel, self.vel));
         }
-        (it, Verdict::Continue)
+        all
     }
 }
 
