@@ -1,5 +1,7 @@
-//! How close to the solution a start must be before the solver stops early: the pile of each
-//! seed is stepped with `--drive` (default `builtin`) and, at each listed step, that step is
+//! How close to the solution a start must be before the solver stops early: the scene of each
+//! seed (`--scene`, default the circle pile; a registered spec such as `box-pile:bodies=1000`,
+//! or a bare name with `--bodies`) is stepped with `--drive` (default `builtin`) and, at each
+//! listed step, that step is
 //! run on copies of the world from starts between the carried impulses and an oracle's
 //! (`--oracle`, default the `copy` oracle solved to 1e-5): `carried + w (oracle − carried)` for
 //! each blend `w` of `--blends`, on the rows `--rows` names (`both`, `normal`: the tangent rows
@@ -14,13 +16,12 @@
 //!     --bodies 1000 --seeds 100..104 --steps 160,180,200,220,240 --blends 0.5,0.9,0.99,0.999
 //! ```
 
-use deepcontact_core::{
-    Impulse, WarmStart, WarmStartContext, WarmStartError, WorldSettings, scene,
-};
+use deepcontact_core::{Impulse, WarmStart, WarmStartContext, WarmStartError, WorldSettings};
+use deepcontact_experiments::scene_for;
 use deepcontact_experiments::seeds::parse_seeds;
 use deepcontact_pgs::PgsPositionSolver;
 
-const USAGE: &str = "usage: start_blend [--bodies 1000] [--seeds 100..104] \
+const USAGE: &str = "usage: start_blend [--scene pile] [--bodies 1000] [--seeds 100..104] \
 [--steps 160,180,200,220,240] [--blends 0.5,0.9,0.99,0.999] [--rows both|normal|tangent] \
 [--drive builtin] [--oracle copy:max_iterations=100000,tolerance=1e-5] [--solver pgs] \
 [--starts PROVIDER,...]";
@@ -115,7 +116,7 @@ fn main() {
 }
 
 fn run() -> Result<(), Box<dyn std::error::Error>> {
-    let mut bodies = 1000;
+    let (mut scene_spec, mut bodies) = ("pile".to_string(), 1000);
     let mut seeds = parse_seeds("100..104")?;
     let mut steps: Vec<u64> = vec![160, 180, 200, 220, 240];
     let mut blends: Vec<f64> = vec![0.5, 0.9, 0.99, 0.999];
@@ -127,6 +128,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     while let Some(a) = args.next() {
         let mut value = || args.next().ok_or(format!("{a} needs a value"));
         match a.as_str() {
+            "--scene" => scene_spec = value()?,
             "--bodies" => bodies = value()?.parse()?,
             "--seeds" => seeds = parse_seeds(&value()?)?,
             "--steps" => steps = list(&value()?)?,
@@ -167,7 +169,8 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         let mut driver = registry.build_provider(&drive)?;
         let mut solver = registry.build_solver(&solver_spec)?;
         let mut position = PgsPositionSolver::new();
-        let mut world = scene::by_name("pile", seed, bodies)?.build(WorldSettings::default())?;
+        let mut world =
+            scene_for(&registry, &scene_spec, seed, bodies)?.build(WorldSettings::default())?;
         let mut at = 0;
         for &step in &steps {
             while at < step {
