@@ -51,8 +51,8 @@ impl Default for CoarseConfig {
 /// dense).
 const MAX_GROUPS: usize = 256;
 
-/// Carried impulses corrected on a coarse level of layers between PGS sweeps (see the
-/// module docs). Buffers are kept between calls.
+/// Carried impulses corrected on a coarse level of layers or cells between PGS sweeps (see
+/// the module docs). Buffers are kept between calls.
 #[derive(Debug)]
 pub struct CoarseWarmStart {
     config: CoarseConfig,
@@ -62,12 +62,12 @@ pub struct CoarseWarmStart {
     group_of: Vec<usize>,
     /// Per cell: its index among the non-empty cells (scratch).
     cell_index: Vec<usize>,
-    /// Row-sized scratch (impulses as rows, a layer's indicator).
+    /// Row-sized scratch (impulses as rows, a group's indicator).
     flat: Vec<Real>,
     indicator: Vec<Real>,
     v: Vec<Velocity>,
     dv: Vec<Velocity>,
-    /// The coarse system (`layers × layers`) and its right-hand side.
+    /// The coarse system (`groups × groups`) and its right-hand side.
     matrix: Vec<Real>,
     rhs: Vec<Real>,
     last_passes: u32,
@@ -182,7 +182,7 @@ impl CoarseWarmStart {
         count
     }
 
-    /// One coarse correction of `impulses` (normal rows of loaded points, by layer).
+    /// One coarse correction of `impulses` (normal rows of loaded points, by group).
     fn correct(&mut self, problem: &ContactProblem, impulses: &mut [Impulse]) {
         let count = self.groups(problem, impulses);
         if count == 0 {
@@ -198,14 +198,14 @@ impl CoarseWarmStart {
                 self.rhs[g] += p.velocity_bias - row_velocity(problem, 2 * k, &self.v);
             }
         }
-        // Column g of Pᵀ W P: W applied to layer g's indicator, summed over each layer.
+        // Column g of Pᵀ W P: W applied to group g's indicator, summed over each group.
         self.matrix.clear();
         self.matrix.resize(count * count, 0.0);
         for g in 0..count {
             self.indicator.clear();
             self.indicator.resize(rows, 0.0);
-            for (k, &layer) in self.group_of.iter().enumerate() {
-                if layer == g {
+            for (k, &group) in self.group_of.iter().enumerate() {
+                if group == g {
                     self.indicator[2 * k] = 1.0;
                 }
             }
