@@ -16,7 +16,9 @@
 //!     --bodies 1000 --seeds 100..104 --steps 160,180,200,220,240 --blends 0.5,0.9,0.99,0.999
 //! ```
 
-use deepcontact_core::{Impulse, WarmStart, WarmStartContext, WarmStartError, WorldSettings};
+use deepcontact_core::{
+    Impulse, StepReport, WarmStart, WarmStartContext, WarmStartError, WorldSettings,
+};
 use deepcontact_experiments::scene_for;
 use deepcontact_experiments::seeds::parse_seeds;
 use deepcontact_pgs::PgsPositionSolver;
@@ -108,99 +110,150 @@ struct Totals {
     distances: Vec<f64>,
 }
 
-fn main() {
-    if let Err(e) = run() {
-        eprintln!("start_blend: {e}\n{USAGE}");
-        std::process::exit(2);
+impl Totals {
+    /// Adds one step run from the start, `distance` its start's distance to the oracle's.
+    fn add(&mut self, r: &StepReport, distance: f64) {
+        self.runs += 1;
+        self.capped += r.capped_islands;
+        self.iterations += u64::from(r.velocity_iterations);
+        self.distances.push(distance);
+    }
+
+    /// The runs summed up: capped islands, iterations a step, the median distance.
+    fn summary(&mut self) -> String {
+        self.distances.sort_by(f64::total_cmp);
+        let median = self.distances.get(self.distances.len() / 2);
+        format!(
+            "{} capped islands over {} steps, {:.0} velocity iterations a step, distance to the \
+             oracle {:.3} of the carried impulses' (median over the steps)",
+            self.capped,
+            self.runs,
+            self.iterations as f64 / self.runs.max(1) as f64,
+            median.copied().unwrap_or(f64::NAN)
+        )
     }
 }
 
-fn run() -> Result<(), Box<dyn std::error::Error>> {
-    let (mut scene_spec, mut bodies) = ("pile".to_string(), 1000);
-    let mut seeds = parse_seeds("100..104")?;
-    let mut steps: Vec<u64> = vec![160, 180, 200, 220, 240];
-    let mut blends: Vec<f64> = vec![0.5, 0.9, 0.99, 0.999];
-    let mut rows = Rows::Both;
-    let (mut drive, mut solver_spec) = ("builtin".to_string(), "pgs".to_string());
-    let mut oracle = "copy:max_iterations=100000,tolerance=1e-5".to_string();
-    let mut starts: Vec<String> = Vec::new();
+/// The command line's settings.
+struct Options {
+    scene: String,
+    bodies: usize,
+    seeds: Vec<u64>,
+    steps: Vec<u64>,
+    blends: Vec<f64>,
+    rows: Rows,
+    drive: String,
+    oracle: String,
+    solver: String,
+    starts: Vec<String>,
+}
+
+fn main() {
+    match parse() {
+        Ok(None) => println!("{USAGE}"),
+        Ok(Some(o)) => {
+            if let Err(e) = run(&o) {
+                eprintln!("start_blend: {e}");
+                std::process::exit(1);
+            }
+        }
+        Err(e) => {
+            eprintln!("start_blend: {e}\n{USAGE}");
+            std::process::exit(2);
+        }
+    }
+}
+
+/// The options from the command line (`None`: help was asked for).
+fn parse() -> Result<Option<Options>, Box<dyn std::error::Error>> {
+    let mut o = Options {
+        scene: "pile".into(),
+        bodies: 1000,
+        seeds: parse_seeds("100..104")?,
+        steps: vec![160, 180, 200, 220, 240],
+        blends: vec![0.5, 0.9, 0.99, 0.999],
+        rows: Rows::Both,
+        drive: "builtin".into(),
+        oracle: "copy:max_iterations=100000,tolerance=1e-5".into(),
+        solver: "pgs".into(),
+        starts: Vec::new(),
+    };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         let mut value = || args.next().ok_or(format!("{a} needs a value"));
         match a.as_str() {
-            "--scene" => scene_spec = value()?,
-            "--bodies" => bodies = value()?.parse()?,
-            "--seeds" => seeds = parse_seeds(&value()?)?,
-            "--steps" => steps = list(&value()?)?,
-            "--blends" => blends = list(&value()?)?,
+            "--scene" => o.scene = value()?,
+            "--bodies" => o.bodies = value()?.parse()?,
+            "--seeds" => o.seeds = parse_seeds(&value()?)?,
+            "--steps" => o.steps = list(&value()?)?,
+            "--blends" => o.blends = list(&value()?)?,
             "--rows" => {
-                rows = match value()?.as_str() {
+                o.rows = match value()?.as_str() {
                     "both" => Rows::Both,
                     "normal" => Rows::Normal,
                     "tangent" => Rows::Tangent,
                     other => return Err(format!("--rows {other}: both, normal or tangent").into()),
                 }
             }
-            "--drive" => drive = value()?,
-            "--oracle" => oracle = value()?,
-            "--solver" => solver_spec = value()?,
-            "--starts" => starts = value()?.split(',').map(str::to_string).collect(),
-            "-h" | "--help" => {
-                println!("{USAGE}");
-                return Ok(());
-            }
+            "--drive" => o.drive = value()?,
+            "--oracle" => o.oracle = value()?,
+            "--solver" => o.solver = value()?,
+            "--starts" => o.starts = list(&value()?)?,
+            "-h" | "--help" => return Ok(None),
             other => return Err(format!("unknown argument `{other}`").into()),
         }
     }
-    steps.sort_unstable();
-    steps.dedup();
-    if steps.is_empty() || blends.len() + starts.len() == 0 {
+    o.steps.sort_unstable();
+    o.steps.dedup();
+    if o.steps.is_empty() || o.blends.len() + o.starts.len() == 0 {
         return Err("name at least one step, and a blend or a start".into());
     }
+    Ok(Some(o))
+}
+
+fn run(o: &Options) -> Result<(), Box<dyn std::error::Error>> {
     let registry = deepcontact_experiments::full_registry();
     // The starts: the blends, then the named providers.
-    let labels: Vec<String> = blends
+    let labels: Vec<String> = o
+        .blends
         .iter()
         .map(|w| format!("w {w}"))
-        .chain(starts.iter().cloned())
+        .chain(o.starts.iter().cloned())
         .collect();
     let mut totals: Vec<Totals> = labels.iter().map(|_| Totals::default()).collect();
-    for &seed in &seeds {
-        let mut driver = registry.build_provider(&drive)?;
-        let mut solver = registry.build_solver(&solver_spec)?;
+    for &seed in &o.seeds {
+        let mut driver = registry.build_provider(&o.drive)?;
+        let mut solver = registry.build_solver(&o.solver)?;
         let mut position = PgsPositionSolver::new();
         let mut world =
-            scene_for(&registry, &scene_spec, seed, bodies)?.build(WorldSettings::default())?;
+            scene_for(&registry, &o.scene, seed, o.bodies)?.build(WorldSettings::default())?;
         let mut at = 0;
-        for &step in &steps {
+        for &step in &o.steps {
             while at < step {
                 world.step(driver.as_mut(), solver.as_mut(), &mut position)?;
                 at += 1;
             }
             let mut line = format!("seed {seed} step {step}:");
             for (k, (total, label)) in totals.iter_mut().zip(&labels).enumerate() {
-                let kind = match blends.get(k) {
-                    Some(&w) => Kind::Blend { w, rows },
-                    None => Kind::Provider(registry.build_provider(&starts[k - blends.len()])?),
+                let kind = match o.blends.get(k) {
+                    Some(&w) => Kind::Blend { w, rows: o.rows },
+                    None => Kind::Provider(registry.build_provider(&o.starts[k - o.blends.len()])?),
                 };
                 let mut start = Start {
                     kind,
-                    carried: registry.build_provider(&drive)?,
-                    oracle: registry.build_provider(&oracle)?,
+                    carried: registry.build_provider(&o.drive)?,
+                    oracle: registry.build_provider(&o.oracle)?,
                     sums: [0.0; 2],
                     scratch: Default::default(),
                 };
-                let mut resolver = registry.build_solver(&solver_spec)?;
+                let mut resolver = registry.build_solver(&o.solver)?;
                 let r = world.clone().step(
                     &mut start,
                     resolver.as_mut(),
                     &mut PgsPositionSolver::new(),
                 )?;
                 let distance = (start.sums[0] / start.sums[1]).sqrt();
-                total.runs += 1;
-                total.capped += r.capped_islands;
-                total.iterations += u64::from(r.velocity_iterations);
-                total.distances.push(distance);
+                total.add(&r, distance);
                 line += &format!(
                     "  {label}: {} it, {} capped, {:.2e}, distance {distance:.3}",
                     r.velocity_iterations, r.capped_islands, r.natural_residual
@@ -210,19 +263,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     for (total, label) in totals.iter_mut().zip(&labels) {
-        total.distances.sort_by(f64::total_cmp);
-        println!(
-            "{label}: {} capped islands over {} steps, {:.0} velocity iterations a step, \
-             distance to the oracle {:.3} of the carried impulses' (median over the steps)",
-            total.capped,
-            total.runs,
-            total.iterations as f64 / total.runs.max(1) as f64,
-            total
-                .distances
-                .get(total.distances.len() / 2)
-                .copied()
-                .unwrap_or(f64::NAN)
-        );
+        println!("{label}: {}", total.summary());
     }
     Ok(())
 }
