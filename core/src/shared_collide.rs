@@ -105,8 +105,12 @@ struct Joined {
     pair_chunk: usize,
 }
 
-/// One chunk's outputs (and its scratch), kept from call to call.
+/// One chunk's outputs (and its scratch), kept from call to call. Aligned to two cache lines
+/// (adjacent-line prefetch): every push writes a buffer's length here, and two threads filling
+/// neighbouring chunks would otherwise write one line (the bounds phase on two threads 1.3 × as
+/// long, docs/PERFORMANCE.md).
 #[derive(Debug, Default)]
+#[repr(align(128))]
 struct Chunk {
     /// A bounds chunk's bodies, and the box of the cells they cover.
     bounds: Bounds,
