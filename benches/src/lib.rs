@@ -196,6 +196,15 @@ impl<W: WarmStart> WarmStart for Recorder<W> {
     fn observe(&mut self, ctx: &WarmStartContext<'_>, seen: &Observation<'_>) {
         self.inner.observe(ctx, seen)
     }
+    fn reset(&mut self) {
+        self.inner.reset();
+    }
+    fn diagnostics(&self) -> Vec<(String, deepcontact_core::Real)> {
+        self.inner.diagnostics()
+    }
+    fn passes_spent(&self) -> u32 {
+        self.inner.passes_spent()
+    }
 }
 
 /// A recorded step: the world right after it, and the islands its warm start saw.

@@ -73,6 +73,9 @@ impl WarmStart for Origin {
     fn passes_spent(&self) -> u32 {
         self.inner.passes_spent()
     }
+    fn diagnostics(&self) -> Vec<(String, deepcontact_core::Real)> {
+        self.inner.diagnostics()
+    }
 }
 
 /// The value after `flag` on the command line, or `default`.

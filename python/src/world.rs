@@ -195,6 +195,9 @@ impl WarmStart for Capture<'_> {
     fn diagnostics(&self) -> Vec<(String, Real)> {
         self.inner.diagnostics()
     }
+    fn passes_spent(&self) -> u32 {
+        self.inner.passes_spent()
+    }
 }
 
 /// Which provider the world holds, so that the next step with the same one reuses it (and

@@ -111,3 +111,18 @@ fn a_budget_below_two_passes_is_refused() {
         assert!(err.to_string().contains("budget"), "{err}");
     }
 }
+
+/// `grid:inner=sor` reported no passes (the grid filter did not forward `passes_spent`), so
+/// under a budget the solver ran all K passes after the inner provider's sweeps.
+#[test]
+fn regression_grid_hid_its_inner_providers_passes() {
+    let l = ledger("grid:inner=sor", Some(8), 90);
+    assert!(l.spent.len() > 100, "{} islands solved", l.spent.len());
+    assert!(
+        l.spent.iter().any(|&s| s > 0),
+        "the inner sweeps were counted"
+    );
+    for (i, (&spent, &solved)) in l.spent.iter().zip(&l.solved).enumerate() {
+        assert_eq!(spent + solved, 8, "island {i}: {spent} + {solved}");
+    }
+}

@@ -26,8 +26,8 @@
 //! one is deepcontact-relax's `learned-sor`).
 
 use deepcontact_core::{
-    CarriedWarmStart, ContactProblem, Impulse, Real, SolveReport, SpecError, WarmStart,
-    WarmStartContext, WarmStartError,
+    CarriedWarmStart, ContactProblem, Impulse, Observation, Real, SolveReport, SpecError,
+    WarmStart, WarmStartContext, WarmStartError,
 };
 use deepcontact_pgs::PgsSolver;
 
@@ -342,6 +342,14 @@ impl WarmStart for RelaxedWarmStart {
         Ok(())
     }
 
+    /// The start the sweeps refine sees every solve, as it would on its own (a start that
+    /// keeps history, e.g. `extrapolate`, needs it).
+    fn observe(&mut self, ctx: &WarmStartContext<'_>, seen: &Observation<'_>) {
+        if let Some(start) = &mut self.start {
+            start.observe(ctx, seen);
+        }
+    }
+
     fn reset(&mut self) {
         (self.sweeps, self.islands, self.step_max_sum, self.steps) = (0, 0, 0, 0);
         (self.dropped, self.gated) = (0, 0);
@@ -355,7 +363,8 @@ impl WarmStart for RelaxedWarmStart {
     /// largest island count of a step — the provider's sweeps beside the world's iterations,
     /// which the comparison counts on a step's slowest island, so that the total work of a
     /// step is both), `dropped` (islands whose diverging sweeps were replaced by the
-    /// carried impulses) and `gated` (islands above [`RelaxedConfig::max_points`], not swept).
+    /// carried impulses) and `gated` (islands above [`RelaxedConfig::max_points`], not swept);
+    /// then the start's own, each name prefixed `start_`.
     fn diagnostics(&self) -> Vec<(String, Real)> {
         let (mut sum, mut steps) = (self.step_max_sum, self.steps);
         if let Some((_, max)) = self.current {
@@ -363,12 +372,16 @@ impl WarmStart for RelaxedWarmStart {
             steps += 1;
         }
         let mean = |a: u64, b: u64| if b > 0 { a as Real / b as Real } else { 0.0 };
-        vec![
+        let own = [
             ("mean_sweeps".into(), mean(self.sweeps, self.islands)),
             ("mean_sweeps_slowest_island".into(), mean(sum, steps)),
             ("dropped".into(), self.dropped as Real),
             ("gated".into(), self.gated as Real),
-        ]
+        ];
+        let start = self.start.iter().flat_map(|s| s.diagnostics());
+        own.into_iter()
+            .chain(start.map(|(k, v)| (format!("start_{k}"), v)))
+            .collect()
     }
 
     /// The start's passes (when it sweeps) and the over-relaxed sweeps, of the last island.

@@ -114,6 +114,9 @@ impl<W: WarmStart> WarmStart for Rounded<W> {
     fn reset(&mut self) {
         self.inner.reset();
     }
+    fn diagnostics(&self) -> Vec<(String, Real)> {
+        self.inner.diagnostics()
+    }
     fn passes_spent(&self) -> u32 {
         self.inner.passes_spent()
     }

@@ -3,7 +3,9 @@
 //! CNN that predicts impulse grids could do, given the transfer's losses.
 
 use deepcontact_core::registry::{Params, ProviderInfo, Registry, SpecError};
-use deepcontact_core::{Impulse, Observation, Vector, WarmStart, WarmStartContext, WarmStartError};
+use deepcontact_core::{
+    Impulse, Observation, Real, Vector, WarmStart, WarmStartContext, WarmStartError,
+};
 
 use crate::error::GridError;
 use crate::kernel::Kernel;
@@ -335,6 +337,14 @@ impl WarmStart for GridFiltered {
     }
     fn reset(&mut self) {
         self.inner.reset();
+    }
+    fn diagnostics(&self) -> Vec<(String, Real)> {
+        self.inner.diagnostics()
+    }
+    /// The inner provider's passes (the filter itself sweeps no rows): under a budget they
+    /// come out of the solver's share.
+    fn passes_spent(&self) -> u32 {
+        self.inner.passes_spent()
     }
 }
 
