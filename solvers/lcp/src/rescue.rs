@@ -594,4 +594,10 @@ impl VelocitySolver for PgsRescueSolver {
     fn threads_for(&self, points: usize) -> usize {
         self.settings.pgs.threads_for(points)
     }
+
+    /// As PGS's: `false` when its settings apply a start's tangents as given
+    /// ([`PgsSettings::raw_start`]).
+    fn projects_start(&self) -> bool {
+        !self.settings.pgs.raw_start
+    }
 }

@@ -380,3 +380,24 @@ fn an_island_the_short_starts_leave_above_the_gate_gets_the_longer_round() {
     assert_eq!(stats.escalated, 0, "{stats:?}");
     assert_eq!(kept.natural_residual.to_bits(), left.to_bits());
 }
+
+/// `pgs-rescue` over PGS with `raw_start` said it projected the start (the trait's default), so
+/// the world measured the start it observed projected while PGS applied it as given.
+#[test]
+fn regression_rescue_claimed_to_project_a_raw_start() {
+    let projected = PgsRescueSolver::with_settings(RescueSettings::default());
+    assert!(projected.projects_start());
+    let d = RescueSettings::default();
+    let raw = PgsRescueSolver::with_settings(RescueSettings {
+        pgs: deepcontact_pgs::PgsSettings {
+            raw_start: true,
+            ..d.pgs
+        },
+        ..d
+    });
+    assert!(!raw.projects_start());
+    assert_eq!(
+        raw.projects_start(),
+        PgsSolver::with_settings(raw.settings.pgs).projects_start()
+    );
+}
