@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use deepcontact_core::math::Real;
 use deepcontact_core::{
     CarriedWarmStart, ContactProblem, Impulse, Observation, PointDesc, ProblemBody, SolveReport,
-    Vector, WarmStart, WarmStartContext, WarmStartError, WorldSettings, scene,
+    StepReport, Vector, WarmStart, WarmStartContext, WarmStartError, WorldSettings, scene,
 };
 use deepcontact_experiments::full_registry;
 use deepcontact_grid::{GridFilterConfig, GridFiltered};
@@ -103,32 +103,45 @@ fn forwards_to_the_probe(wrapper: &mut dyn WarmStart, probe: &Probe) {
     assert_eq!(probe.resets.load(Ordering::Relaxed), 1, "{name}: reset");
 }
 
+/// The step reports of the 100-circle pile (seed 7) stepped 80 times with `provider`.
+fn pile_reports(provider: &mut dyn WarmStart) -> Vec<StepReport> {
+    let mut world = scene::pile(7, 100)
+        .unwrap()
+        .build(WorldSettings::default())
+        .unwrap();
+    let mut solver = full_registry().build_solver("pgs").unwrap();
+    let mut position = PgsPositionSolver::new();
+    (0..80)
+        .map(|_| {
+            world
+                .step(provider, solver.as_mut(), &mut position)
+                .unwrap()
+        })
+        .collect()
+}
+
+/// A start inside `sor`, and the probe that counts what it is told.
+fn sor_over_a_probe() -> (RelaxedWarmStart, Probe) {
+    let probe = Probe::default();
+    let sor = RelaxedWarmStart::new(RelaxedConfig::default())
+        .unwrap()
+        .with_start(Box::new(probe.clone()));
+    (sor, probe)
+}
+
 /// `sor:start=NAME` never passed the solves on to its start, so a start that keeps history
 /// (`extrapolate`) had none and `sor:start=extrapolate` stepped with the bits of `sor`.
 #[test]
 fn regression_sor_start_never_saw_the_solves() {
-    let probe = Probe::default();
-    let mut sor = RelaxedWarmStart::new(RelaxedConfig::default())
-        .unwrap()
-        .with_start(Box::new(probe.clone()));
+    let (mut sor, probe) = sor_over_a_probe();
     forwards_to_the_probe(&mut sor, &probe);
 
     // In a world: the extrapolated start now moves the trajectory away from plain `sor`'s.
     let run = |spec: &str| {
-        let mut world = scene::pile(7, 100)
-            .unwrap()
-            .build(WorldSettings::default())
-            .unwrap();
         let mut provider = full_registry().build_provider(spec).unwrap();
-        let mut solver = full_registry().build_solver("pgs").unwrap();
-        let mut position = PgsPositionSolver::new();
-        (0..80)
-            .map(|_| {
-                let r = world
-                    .step(&mut provider, solver.as_mut(), &mut position)
-                    .unwrap();
-                (r.contacts, r.velocity_iterations)
-            })
+        pile_reports(&mut provider)
+            .iter()
+            .map(|r| (r.contacts, r.velocity_iterations))
             .collect::<Vec<_>>()
     };
     let (plain, extrapolated) = (run("sor"), run("sor:start=extrapolate"));
@@ -158,23 +171,8 @@ fn the_rounding_wrapper_forwards_to_its_inner_provider() {
 /// The world itself tells a wrapped start about every island it solves.
 #[test]
 fn a_world_shows_every_solve_to_the_start_inside_sor() {
-    let probe = Probe::default();
-    let mut sor = RelaxedWarmStart::new(RelaxedConfig::default())
-        .unwrap()
-        .with_start(Box::new(probe.clone()));
-    let mut world = scene::pile(7, 100)
-        .unwrap()
-        .build(WorldSettings::default())
-        .unwrap();
-    let mut solver = full_registry().build_solver("pgs").unwrap();
-    let mut position = PgsPositionSolver::new();
-    let mut islands = 0;
-    for _ in 0..80 {
-        islands += world
-            .step(&mut sor, solver.as_mut(), &mut position)
-            .unwrap()
-            .islands;
-    }
+    let (mut sor, probe) = sor_over_a_probe();
+    let islands: usize = pile_reports(&mut sor).iter().map(|r| r.islands).sum();
     assert!(islands > 20, "{islands} islands solved");
     assert_eq!(probe.observed.load(Ordering::Relaxed), islands);
     // The world resets its provider before the first step.
