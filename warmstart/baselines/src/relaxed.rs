@@ -342,8 +342,9 @@ impl WarmStart for RelaxedWarmStart {
         Ok(())
     }
 
-    /// The start the sweeps refine sees every solve, as it would on its own (a start that
-    /// keeps history, e.g. `extrapolate`, needs it).
+    /// The start the sweeps refine sees every solve (a start that keeps history, e.g.
+    /// `extrapolate`, needs it). What it is shown as the start used is the sweeps' output, the
+    /// start the solver applied; the solved impulses and the report are the solve's.
     fn observe(&mut self, ctx: &WarmStartContext<'_>, seen: &Observation<'_>) {
         if let Some(start) = &mut self.start {
             start.observe(ctx, seen);
