@@ -309,3 +309,102 @@ fn regression_pgs_panicked_on_a_nan_friction_bound() {
     );
     assert_diverges_in(&p, &[Impulse::ZERO], 1);
 }
+
+/// Records, at one step, the island the solver it wraps leaves farthest from a solution: its
+/// problem, the start it was given and the natural residual it was left at.
+struct WorstIsland {
+    inner: Box<dyn VelocitySolver>,
+    recording: bool,
+    worst: Option<(ContactProblem, Vec<Impulse>, Real)>,
+}
+
+impl VelocitySolver for WorstIsland {
+    fn name(&self) -> &str {
+        "worst-island"
+    }
+
+    fn solve(
+        &mut self,
+        problem: &ContactProblem,
+        settings: &SolverSettings,
+        impulses: &mut [Impulse],
+        velocities: &mut [Velocity],
+        report: &mut SolveReport,
+    ) -> Result<(), CoreError> {
+        let start = impulses.to_vec();
+        self.inner
+            .solve(problem, settings, impulses, velocities, report)?;
+        let left = report.natural_residual;
+        if self.recording && self.worst.as_ref().is_none_or(|w| left > w.2) {
+            self.worst = Some((problem.clone(), start, left));
+        }
+        Ok(())
+    }
+
+    fn begin_step(&mut self, dt: Real, gravity: Vector) {
+        self.inner.begin_step(dt, gravity);
+    }
+
+    fn projects_start(&self) -> bool {
+        self.inner.projects_start()
+    }
+}
+
+/// Circle pile, seed 1315, step 116, `learned-sor`'s start: `pgs-rescue` left a 102-point
+/// island at 1.9e-3 N·s, above its 1e-3 target. PGS cycles there; Newton from PGS's last
+/// iterate, from zeros and after the 5 000 finishing iterations all wander, while Newton from
+/// some of the iterates along the finishing iterations converges. The finishing iterations now
+/// run in rounds with a Newton solve between them.
+#[test]
+fn regression_rescue_left_a_cycling_island_above_its_target() {
+    use deepcontact_core::{PositionSolver, WorldSettings};
+    use deepcontact_lcp::{PgsRescueSolver, RescueSettings};
+    let registry = deepcontact_experiments::full_registry();
+    let one_round = RescueSettings {
+        finish_chunk: 5_000,
+        ..RescueSettings::default()
+    };
+    let mut provider = registry.build_provider("learned-sor").unwrap();
+    // The trajectory of the rescue before the rounds (one round of 5 000: no Newton in it).
+    let mut solver = WorstIsland {
+        inner: Box::new(PgsRescueSolver::with_settings(one_round)),
+        recording: false,
+        worst: None,
+    };
+    let mut position = deepcontact_pgs::PgsPositionSolver::new();
+    let position: &mut dyn PositionSolver = &mut position;
+    let mut world = scene::pile(1315, 100)
+        .unwrap()
+        .build(WorldSettings::default())
+        .unwrap();
+    for step in 0..=116 {
+        solver.recording = step == 116;
+        world
+            .step(provider.as_mut(), &mut solver, &mut *position)
+            .unwrap();
+    }
+    let (problem, start, left) = solver.worst.unwrap();
+    assert!(left > 1e-3, "the recorded island was left at {left:e}");
+    let run = |settings: RescueSettings| {
+        let mut rescue = PgsRescueSolver::with_settings(settings);
+        let mut impulses = start.clone();
+        let mut velocities = vec![Velocity::default(); problem.bodies.len()];
+        let mut report = SolveReport::default();
+        rescue
+            .solve(
+                &problem,
+                &SolverSettings::default(),
+                &mut impulses,
+                &mut velocities,
+                &mut report,
+            )
+            .unwrap();
+        (report.natural_residual, rescue.stats())
+    };
+    let (before, stats) = run(one_round);
+    assert_eq!(before.to_bits(), left.to_bits());
+    assert_eq!((stats.finished, stats.finish_newtons), (1, 0), "{stats:?}");
+    let (after, stats) = run(RescueSettings::default());
+    assert!(stats.finish_newtons >= 1, "{stats:?}");
+    assert!(after < 1e-3, "the rounds left the island at {after:e}");
+}

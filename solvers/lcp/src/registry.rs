@@ -29,7 +29,7 @@ fn u32_param(p: &mut Params<'_>, key: &'static str, default: u32) -> Result<u32,
 /// `newton` (`reg=1e-10`, `assembly`, `dense_threshold`) and `pgs-rescue`
 /// (`trigger=capped|stalled`, `window=100`, `factor=2`, `start=best|iterate|zeros`,
 /// `above=10`, `newton_iterations=20`, `newton_chunk=300`, `newton_progress=0.5`,
-/// `newton_tolerance=1e-6`, `escalate=300`, `escalate_above=10`, `finish=5000`); defaults are
+/// `newton_tolerance=1e-6`, `escalate=300`, `escalate_above=10`, `finish=5000`, `finish_chunk=500`); defaults are
 /// [`PsorSettings::default`], [`NewtonSettings::default`] and [`RescueSettings::default`].
 pub fn register(registry: &mut Registry) {
     register_psor(registry);
@@ -109,7 +109,8 @@ fn register_pgs_rescue(registry: &mut Registry) {
          its value after the chunk before, after the first × PGS's; at least newton_iterations: \
          one solve per start), newton_tolerance=1e-6 (N·s), finish=5000 (PGS iterations from \
          the best result when no start converged and it is still above escalate_above=10 × \
-         the stop tolerance; 0: none), escalate=300 (when that leaves it above too, the starts \
+         the stop tolerance; 0: none), finish_chunk=500 (the finishing iterations in rounds of \
+         this many, a Newton solve from each round's impulses until one converges), escalate=300 (when that leaves it above too, the starts \
          again with this cap; 0: none)",
         |p| {
             let d = RescueSettings::default();
@@ -129,6 +130,7 @@ fn register_pgs_rescue(registry: &mut Registry) {
             let newton_chunk = u32_param(p, "newton_chunk", d.newton_chunk)?;
             let escalate = u32_param(p, "escalate", d.escalate)?;
             let finish = u32_param(p, "finish", d.finish)?;
+            let finish_chunk = u32_param(p, "finish_chunk", d.finish_chunk)?;
             let settings = RescueSettings {
                 trigger,
                 start,
@@ -142,6 +144,7 @@ fn register_pgs_rescue(registry: &mut Registry) {
                 escalate,
                 escalate_above: p.f64("escalate_above", d.escalate_above)?,
                 finish,
+                finish_chunk,
                 ..d
             };
             if let Err(e) = settings.validate() {

@@ -95,6 +95,17 @@ pub struct RescueSettings {
     /// while PGS only converges slowly (a few thousand iterations from builtin's start, each
     /// one sweep of the island).
     pub finish: u32,
+    /// The finishing iterations run in rounds of this many (default 500, ≥ 1); after each
+    /// round that another follows and that leaves the island above
+    /// [`Self::escalate_above`] × the stop tolerance, a Newton solve of
+    /// [`Self::newton_iterations`] starts from the round's impulses, and the next round goes
+    /// on from the round's impulses (not Newton's). Semismooth Newton
+    /// converges from some points of a cycling PGS trajectory and wanders from others that
+    /// look alike (on a 102-point circle-pile island, from the iterates after 30 and 300
+    /// sweeps but not after 10, 100 or 600), so a few starts along the trajectory finish
+    /// islands that neither method finishes alone. `finish_chunk` ≥ `finish`: one round and
+    /// no Newton solve in it.
+    pub finish_chunk: u32,
 }
 
 impl Default for RescueSettings {
@@ -114,6 +125,7 @@ impl Default for RescueSettings {
             escalate: 300,
             escalate_above: 10.0,
             finish: 5_000,
+            finish_chunk: 500,
         }
     }
 }
@@ -176,6 +188,12 @@ impl RescueSettings {
             "must be finite and >= 0",
         )?;
         check(
+            "finish_chunk",
+            Real::from(self.finish_chunk),
+            self.finish_chunk >= 1,
+            "must be >= 1",
+        )?;
+        check(
             "escalate_above",
             self.escalate_above,
             self.escalate_above.is_finite() && self.escalate_above >= 0.0,
@@ -213,6 +231,9 @@ pub struct RescueStats {
     /// Islands the short Newton solves left above [`RescueSettings::escalate_above`] × the
     /// stop tolerance that got [`RescueSettings::finish`] more PGS iterations.
     pub finished: u64,
+    /// Newton solves started between the finishing rounds
+    /// ([`RescueSettings::finish_chunk`]).
+    pub finish_newtons: u64,
     /// Newton iterations, in all.
     pub newton_iterations: u64,
     /// Wall time of the Newton solves (s).
@@ -269,6 +290,8 @@ pub struct PgsRescueSolver {
     saved_velocities: Vec<Velocity>,
     trial_impulses: Vec<Impulse>,
     trial_velocities: Vec<Velocity>,
+    chain_impulses: Vec<Impulse>,
+    chain_velocities: Vec<Velocity>,
     newton_report: SolveReport,
     finish_report: SolveReport,
 }
@@ -296,6 +319,8 @@ impl PgsRescueSolver {
             saved_velocities: Vec::new(),
             trial_impulses: Vec::new(),
             trial_velocities: Vec::new(),
+            chain_impulses: Vec::new(),
+            chain_velocities: Vec::new(),
             newton_report: SolveReport::default(),
             finish_report: SolveReport::default(),
         }
@@ -458,7 +483,9 @@ impl PgsRescueSolver {
         let converged = self.run_starts(problem, cap, &mut best, impulses, velocities, report);
         let gate = self.settings.escalate_above * tolerance;
         if !converged && self.settings.finish > 0 && best > gate {
-            self.finish(problem, settings, &mut best, impulses, velocities, report);
+            self.finish(
+                problem, settings, gate, &mut best, impulses, velocities, report,
+            );
         }
         if !converged && self.settings.escalate > 0 && best > gate {
             self.stats.escalated += 1;
@@ -474,44 +501,79 @@ impl PgsRescueSolver {
     }
 
     /// [`RescueSettings::finish`] PGS iterations from `impulses` (the best result so far),
-    /// under the stop rule of `settings`; kept when their natural residual is below `best`
-    /// (which it lowers). A failed solve keeps the best result.
+    /// under the stop rule of `settings`, in rounds of [`RescueSettings::finish_chunk`]; a
+    /// round's result is kept when its natural residual is below `best` (which it lowers).
+    /// After a round that neither met the stop rule nor brought `best` to `gate`, and that
+    /// another round follows, Newton ([`RescueSettings::newton_iterations`]) from the round's
+    /// impulses, kept likewise; the rounds end when Newton converges. A failed solve keeps the best result.
+    #[allow(clippy::too_many_arguments)]
     fn finish(
         &mut self,
         problem: &ContactProblem,
         settings: &SolverSettings,
+        gate: Real,
         best: &mut Real,
         impulses: &mut [Impulse],
         velocities: &mut [Velocity],
         report: &mut SolveReport,
     ) {
         self.stats.finished += 1;
-        self.trial_impulses.clear();
-        self.trial_impulses.extend_from_slice(impulses);
-        self.trial_velocities.clear();
-        self.trial_velocities
-            .resize(velocities.len(), Velocity::default());
-        let stop = SolverSettings {
-            max_iterations: self.settings.finish,
-            ..*settings
-        };
-        let solved = self.pgs.solve(
-            problem,
-            &stop,
-            &mut self.trial_impulses,
-            &mut self.trial_velocities,
-            &mut self.finish_report,
-        );
-        let f = &self.finish_report;
-        report.iterations += f.iterations;
-        report.residual_inf.extend_from_slice(&f.residual_inf);
-        report.residual_l2.extend_from_slice(&f.residual_l2);
-        report.seconds += f.seconds;
-        if solved.is_ok() && f.natural_residual < *best {
-            *best = f.natural_residual;
-            impulses.copy_from_slice(&self.trial_impulses);
-            velocities.copy_from_slice(&self.trial_velocities);
-            report.converged = f.converged;
+        self.chain_impulses.clear();
+        self.chain_impulses.extend_from_slice(impulses);
+        let mut left = self.settings.finish;
+        while left > 0 {
+            let chunk = left.min(self.settings.finish_chunk);
+            left -= chunk;
+            self.chain_velocities.clear();
+            self.chain_velocities
+                .resize(velocities.len(), Velocity::default());
+            let stop = SolverSettings {
+                max_iterations: chunk,
+                ..*settings
+            };
+            let solved = self.pgs.solve(
+                problem,
+                &stop,
+                &mut self.chain_impulses,
+                &mut self.chain_velocities,
+                &mut self.finish_report,
+            );
+            let f = &self.finish_report;
+            report.iterations += f.iterations;
+            report.residual_inf.extend_from_slice(&f.residual_inf);
+            report.residual_l2.extend_from_slice(&f.residual_l2);
+            report.seconds += f.seconds;
+            if solved.is_err() {
+                return;
+            }
+            if f.natural_residual < *best {
+                *best = f.natural_residual;
+                impulses.copy_from_slice(&self.chain_impulses);
+                velocities.copy_from_slice(&self.chain_velocities);
+                report.converged = f.converged;
+            }
+            if f.converged || *best <= gate || left == 0 {
+                return;
+            }
+            self.stats.finish_newtons += 1;
+            self.trial_impulses.clear();
+            self.trial_impulses.extend_from_slice(&self.chain_impulses);
+            self.trial_velocities.clear();
+            self.trial_velocities
+                .resize(velocities.len(), Velocity::default());
+            let residual = self.newton_from_trial(problem, self.settings.newton_iterations);
+            self.append_newton(report);
+            if let Some(r) = residual
+                && r < *best
+            {
+                *best = r;
+                impulses.copy_from_slice(&self.trial_impulses);
+                velocities.copy_from_slice(&self.trial_velocities);
+                report.converged = self.newton_report.converged;
+            }
+            if self.newton_report.converged {
+                return;
+            }
         }
     }
 

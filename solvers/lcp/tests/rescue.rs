@@ -278,6 +278,10 @@ fn bad_parameters_give_typed_errors() {
             escalate_above: Real::INFINITY,
             ..RescueSettings::default()
         },
+        RescueSettings {
+            finish_chunk: 0,
+            ..RescueSettings::default()
+        },
     ];
     for (settings, name) in bad.iter().zip([
         "window",
@@ -288,6 +292,7 @@ fn bad_parameters_give_typed_errors() {
         "newton_progress",
         "newton_tolerance",
         "escalate_above",
+        "finish_chunk",
     ]) {
         match settings.validate() {
             Err(LcpError::InvalidSetting { name: n, .. }) => assert_eq!(n, name),
