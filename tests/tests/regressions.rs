@@ -362,10 +362,12 @@ fn regression_rescue_left_a_cycling_island_above_its_target() {
     let registry = deepcontact_experiments::full_registry();
     let one_round = RescueSettings {
         finish_chunk: 5_000,
+        sweeps_first: false,
         ..RescueSettings::default()
     };
     let mut provider = registry.build_provider("learned-sor").unwrap();
-    // The trajectory of the rescue before the rounds (one round of 5 000: no Newton in it).
+    // The trajectory of the rescue before the rounds (one round of 5 000, no Newton in it,
+    // after the Newton starts).
     let mut solver = WorstIsland {
         inner: Box::new(PgsRescueSolver::with_settings(one_round)),
         recording: false,

@@ -29,7 +29,8 @@ fn u32_param(p: &mut Params<'_>, key: &'static str, default: u32) -> Result<u32,
 /// `newton` (`reg=1e-10`, `assembly`, `dense_threshold`) and `pgs-rescue`
 /// (`trigger=capped|stalled`, `window=100`, `factor=2`, `start=best|iterate|zeros`,
 /// `above=10`, `newton_iterations=20`, `newton_chunk=300`, `newton_progress=0.5`,
-/// `newton_tolerance=1e-6`, `escalate=300`, `escalate_above=10`, `finish=5000`, `finish_chunk=500`); defaults are
+/// `newton_tolerance=1e-6`, `escalate=300`, `escalate_above=10`, `finish=5000`, `finish_chunk=500`,
+/// `sweeps_first=true`); defaults are
 /// [`PsorSettings::default`], [`NewtonSettings::default`] and [`RescueSettings::default`].
 pub fn register(registry: &mut Registry) {
     register_psor(registry);
@@ -110,8 +111,10 @@ fn register_pgs_rescue(registry: &mut Registry) {
          one solve per start), newton_tolerance=1e-6 (N·s), finish=5000 (PGS iterations from \
          the best result when no start converged and it is still above escalate_above=10 × \
          the stop tolerance; 0: none), finish_chunk=500 (the finishing iterations in rounds of \
-         this many, a Newton solve from each round's impulses until one converges), escalate=300 (when that leaves it above too, the starts \
-         again with this cap; 0: none)",
+         this many, a Newton solve from the end of each but the last until one converges; at \
+         least finish: one round, no Newton), sweeps_first=true (the rounds before the Newton \
+         starts, which then run only if the rounds leave the island above the gate), \
+         escalate=300 (when that leaves it above too, the starts again with this cap; 0: none)",
         |p| {
             let d = RescueSettings::default();
             let trigger = match p.choice("trigger", &["capped", "stalled"])? {
@@ -131,6 +134,7 @@ fn register_pgs_rescue(registry: &mut Registry) {
             let escalate = u32_param(p, "escalate", d.escalate)?;
             let finish = u32_param(p, "finish", d.finish)?;
             let finish_chunk = u32_param(p, "finish_chunk", d.finish_chunk)?;
+            let sweeps_first = p.bool("sweeps_first", d.sweeps_first)?;
             let settings = RescueSettings {
                 trigger,
                 start,
@@ -145,6 +149,7 @@ fn register_pgs_rescue(registry: &mut Registry) {
                 escalate_above: p.f64("escalate_above", d.escalate_above)?,
                 finish,
                 finish_chunk,
+                sweeps_first,
                 ..d
             };
             if let Err(e) = settings.validate() {

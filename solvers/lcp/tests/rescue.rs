@@ -406,3 +406,33 @@ fn regression_rescue_claimed_to_project_a_raw_start() {
         PgsSolver::with_settings(raw.settings.pgs).projects_start()
     );
 }
+
+/// With the finishing rounds first, an island that one round of PGS settles never pays for a
+/// Newton start; with the starts first it does. The island of the test above (PGS converges
+/// in 37 iterations), capped at 20.
+#[test]
+fn a_slow_island_the_first_round_settles_gets_no_newton_start() {
+    let (problem, start) = island(313, 60);
+    let capped = SolverSettings {
+        max_iterations: 20,
+        ..SolverSettings::default()
+    };
+    let run = |sweeps_first: bool| {
+        let mut rescue = PgsRescueSolver::with_settings(RescueSettings {
+            window: 10,
+            above: 0.0,
+            sweeps_first,
+            ..RescueSettings::default()
+        });
+        let (_, _, report) = solve_under(&mut rescue, &problem, &start, &capped);
+        (report, rescue.stats())
+    };
+    let (first, stats) = run(true);
+    assert_eq!((stats.attempted, stats.finished), (1, 1), "{stats:?}");
+    assert_eq!(stats.newton_iterations, 0, "{stats:?}");
+    assert!(first.converged, "{first:?}");
+    let (after, stats) = run(false);
+    assert_eq!(stats.attempted, 1, "{stats:?}");
+    assert!(stats.newton_iterations > 0, "{stats:?}");
+    assert!(after.natural_residual <= capped.tolerance * 10.0, "{after:?}");
+}
