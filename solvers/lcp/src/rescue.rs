@@ -396,6 +396,26 @@ impl PgsRescueSolver {
         }
     }
 
+    /// Keeps the last Newton solve's result (the trial buffers) as the island's when its
+    /// natural residual `residual` is below `best` (which it lowers).
+    fn keep_newton(
+        &self,
+        residual: Option<Real>,
+        best: &mut Real,
+        impulses: &mut [Impulse],
+        velocities: &mut [Velocity],
+        report: &mut SolveReport,
+    ) {
+        if let Some(r) = residual
+            && r < *best
+        {
+            *best = r;
+            impulses.copy_from_slice(&self.trial_impulses);
+            velocities.copy_from_slice(&self.trial_velocities);
+            report.converged = self.newton_report.converged;
+        }
+    }
+
     /// Appends the last Newton solve's figures to `report`.
     fn append_newton(&self, report: &mut SolveReport) {
         let n = &self.newton_report;
@@ -453,14 +473,7 @@ impl PgsRescueSolver {
                     _ => break,
                 }
             }
-            if let Some(r) = residual
-                && r < *best
-            {
-                *best = r;
-                impulses.copy_from_slice(&self.trial_impulses);
-                velocities.copy_from_slice(&self.trial_velocities);
-                report.converged = self.newton_report.converged;
-            }
+            self.keep_newton(residual, best, impulses, velocities, report);
             if self.newton_report.converged {
                 return true;
             }
@@ -585,14 +598,7 @@ impl PgsRescueSolver {
                 .resize(velocities.len(), Velocity::default());
             let residual = self.newton_from_trial(problem, self.settings.newton_iterations);
             self.append_newton(report);
-            if let Some(r) = residual
-                && r < *best
-            {
-                *best = r;
-                impulses.copy_from_slice(&self.trial_impulses);
-                velocities.copy_from_slice(&self.trial_velocities);
-                report.converged = self.newton_report.converged;
-            }
+            self.keep_newton(residual, best, impulses, velocities, report);
             if self.newton_report.converged {
                 return;
             }

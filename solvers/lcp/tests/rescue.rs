@@ -434,5 +434,8 @@ fn a_slow_island_the_first_round_settles_gets_no_newton_start() {
     let (after, stats) = run(false);
     assert_eq!(stats.attempted, 1, "{stats:?}");
     assert!(stats.newton_iterations > 0, "{stats:?}");
-    assert!(after.natural_residual <= capped.tolerance * 10.0, "{after:?}");
+    assert!(
+        after.natural_residual <= capped.tolerance * 10.0,
+        "{after:?}"
+    );
 }
