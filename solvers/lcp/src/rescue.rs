@@ -87,9 +87,10 @@ pub struct RescueSettings {
     /// longer round [`Self::escalate`] (default 10, ≥ 0: with the comparison's 1e-4, a natural
     /// residual above 1e-3 N·s).
     pub escalate_above: Real,
-    /// PGS iterations from the best result when the short Newton solves leave the island
-    /// above [`Self::escalate_above`] × the stop tolerance, kept when they lower its natural
-    /// residual, before the longer round [`Self::escalate`] (default 5 000; 0 = none). On the
+    /// PGS iterations from the best result, kept when they lower its natural residual
+    /// (default 5 000; 0 = none): first, with [`Self::sweeps_first`]; else when the short
+    /// Newton solves leave the island above [`Self::escalate_above`] × the stop tolerance,
+    /// before the longer round [`Self::escalate`]. On the
     /// landing steps of a pyramid of boxes semismooth Newton rarely finds a descent direction
     /// (a long round there costs ≈ 2 ms an iteration: two factorisations and a line search),
     /// while PGS only converges slowly (a few thousand iterations from builtin's start, each
@@ -236,8 +237,9 @@ pub struct RescueStats {
     /// [`RescueSettings::escalate_above`] × the stop tolerance and that got the longer round
     /// of Newton solves.
     pub escalated: u64,
-    /// Islands the short Newton solves left above [`RescueSettings::escalate_above`] × the
-    /// stop tolerance that got [`RescueSettings::finish`] more PGS iterations.
+    /// Islands that got [`RescueSettings::finish`] more PGS iterations (every rescued island
+    /// with [`RescueSettings::sweeps_first`]; else those the short Newton solves left above
+    /// [`RescueSettings::escalate_above`] × the stop tolerance).
     pub finished: u64,
     /// Newton solves started between the finishing rounds
     /// ([`RescueSettings::finish_chunk`]).
@@ -302,7 +304,6 @@ pub struct PgsRescueSolver {
     trial_impulses: Vec<Impulse>,
     trial_velocities: Vec<Velocity>,
     chain_impulses: Vec<Impulse>,
-    chain_velocities: Vec<Velocity>,
     newton_report: SolveReport,
     finish_report: SolveReport,
 }
@@ -331,7 +332,6 @@ impl PgsRescueSolver {
             trial_impulses: Vec::new(),
             trial_velocities: Vec::new(),
             chain_impulses: Vec::new(),
-            chain_velocities: Vec::new(),
             newton_report: SolveReport::default(),
             finish_report: SolveReport::default(),
         }
@@ -559,8 +559,10 @@ impl PgsRescueSolver {
         while left > 0 {
             let chunk = left.min(self.settings.finish_chunk);
             left -= chunk;
-            self.chain_velocities.clear();
-            self.chain_velocities
+            // The round's velocities are kept at once or not at all, so the trial buffer
+            // (which the Newton solve after the round overwrites) holds them.
+            self.trial_velocities.clear();
+            self.trial_velocities
                 .resize(velocities.len(), Velocity::default());
             let stop = SolverSettings {
                 max_iterations: chunk,
@@ -570,7 +572,7 @@ impl PgsRescueSolver {
                 problem,
                 &stop,
                 &mut self.chain_impulses,
-                &mut self.chain_velocities,
+                &mut self.trial_velocities,
                 &mut self.finish_report,
             );
             let f = &self.finish_report;
@@ -584,7 +586,7 @@ impl PgsRescueSolver {
             if f.natural_residual < *best {
                 *best = f.natural_residual;
                 impulses.copy_from_slice(&self.chain_impulses);
-                velocities.copy_from_slice(&self.chain_velocities);
+                velocities.copy_from_slice(&self.trial_velocities);
                 report.converged = f.converged;
             }
             if f.converged || *best <= gate || left == 0 {
