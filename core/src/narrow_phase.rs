@@ -19,8 +19,8 @@ pub struct RawContact {
     pub separation: Real,
 }
 
-/// Pairs a thread takes at least before [`NarrowPhase::collide_on`] starts another: a
-/// pair costs a few hundred ns, starting a thread tens of µs.
+/// Pairs a thread takes at least before [`NarrowPhase::collide_on`] hands some to another: a
+/// pair costs a few hundred ns, waking or starting a thread tens of µs.
 pub const MIN_PAIRS_PER_THREAD: usize = 1024;
 
 /// Reusable narrow-phase state.
@@ -108,32 +108,24 @@ impl NarrowPhase {
         let own = chunks.next().unwrap_or_default();
         let (contacts, ranges) = (&mut self.contacts, &mut self.manifolds_ranges);
         let rest = &mut rest[..threads - 1];
-        std::thread::scope(|scope| {
-            for (share, chunk) in rest.iter_mut().zip(chunks) {
-                scope.spawn(move || {
-                    share.contacts.clear();
-                    share.ranges.clear();
-                    collide_pairs(
-                        bodies,
-                        poses,
-                        chunk,
-                        prediction,
-                        &mut share.manifolds,
-                        &mut share.contacts,
-                        &mut share.ranges,
-                    );
-                });
-            }
-            collide_pairs(
-                bodies,
-                poses,
-                own,
-                prediction,
-                &mut first.manifolds,
+        let shares = rest.iter_mut().zip(chunks).map(|(share, chunk)| {
+            let Share {
+                manifolds,
                 contacts,
                 ranges,
-            );
+            } = share;
+            (chunk, manifolds, contacts, ranges)
         });
+        crate::threads::on_threads(
+            std::iter::once((own, &mut first.manifolds, contacts, ranges)).chain(shares),
+            |(chunk, manifolds, contacts, ranges)| {
+                contacts.clear();
+                ranges.clear();
+                collide_pairs(
+                    bodies, poses, chunk, prediction, manifolds, contacts, ranges,
+                );
+            },
+        );
         for share in rest.iter() {
             let offset = self.contacts.len() as u32;
             self.contacts.extend_from_slice(&share.contacts);

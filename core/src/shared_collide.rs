@@ -38,7 +38,7 @@ use crate::broad_phase::{
 };
 use crate::math::Real;
 use crate::narrow_phase::{NarrowPhase, RawContact, collide_pairs};
-use crate::threads::{AbortOnPanic, lock, read, wait_unless_aborted, write};
+use crate::threads::{AbortOnPanic, lock, on_threads, read, wait_unless_aborted, write};
 
 /// Bodies a bounds chunk takes.
 const BODY_CHUNK: usize = 512;
@@ -259,11 +259,7 @@ impl SharedCollide {
         let queue = Queue::default();
         let mut next_inv = inv;
         let mut pair_chunks = 0;
-        std::thread::scope(|scope| {
-            for _ in 1..threads.max(1) {
-                let (queue, work) = (&queue, &work);
-                scope.spawn(move || queue.help(work));
-            }
+        let lead = || {
             let _abort = AbortOnPanic(&queue.aborted);
             queue.publish(BOUNDS, n.div_ceil(BODY_CHUNK));
             queue.take(BOUNDS, &work);
@@ -292,6 +288,12 @@ impl SharedCollide {
             queue.publish(MANIFOLDS, pair_chunks);
             queue.take(MANIFOLDS, &work);
             queue.finished(MANIFOLDS);
+        };
+        // The stepping thread leads (it joins and sorts between the phases); the others help.
+        let roles = std::iter::once(Some(lead)).chain((1..threads.max(1)).map(|_| None));
+        on_threads(roles, |role| match role {
+            Some(mut lead) => lead(),
+            None => queue.help(&work),
         });
         drop(chunks);
         self.inv = Some(next_inv);

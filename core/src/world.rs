@@ -1066,16 +1066,7 @@ fn on_forks<F: Send>(
             job(fork, problem, w);
         }
     };
-    let mut forks = forks.into_iter();
-    let Some(mut first) = forks.next() else {
-        return;
-    };
-    std::thread::scope(|scope| {
-        for mut fork in forks {
-            scope.spawn(move || work(&mut fork));
-        }
-        work(&mut first);
-    });
+    crate::threads::on_threads(forks, |mut fork| work(&mut fork));
 }
 
 /// The stop rule of an island under a fixed budget of `budget` passes of which the provider

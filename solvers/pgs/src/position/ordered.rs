@@ -26,7 +26,7 @@ use deepcontact_core::{PositionReport, PositionSettings};
 
 use crate::position::waves::{Waves, levels};
 use crate::position::{CachedRotations, PassMeasures, PosRow, Rotation, correct_point};
-use crate::threads::sync::{AbortOnPanic, Cell3, Padded, lock, wait_unless_aborted};
+use crate::threads::sync::{AbortOnPanic, Cell3, Padded, lock, on_threads, wait_unless_aborted};
 
 /// Islands of at least this many points run the ordered plan when more than one thread is
 /// asked for and the island is below the domain plan's size; below it a thread's share is
@@ -266,20 +266,8 @@ pub(crate) fn solve(
         }
         local
     };
-    let locals: Vec<Vec<Pose>> = std::thread::scope(|scope| {
-        let handles: Vec<_> = (1..threads)
-            .map(|t| {
-                let work = &work;
-                scope.spawn(move || work(t))
-            })
-            .collect();
-        let mut locals = vec![work(0)];
-        locals.extend(handles.into_iter().map(|h| {
-            h.join()
-                .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
-        }));
-        locals
-    });
+    let mut locals: Vec<Vec<Pose>> = vec![Vec::new(); threads];
+    on_threads(locals.iter_mut().enumerate(), |(t, local)| *local = work(t));
     write_back(&plan, &seams, &locals, poses);
     *report = shared_report
         .into_inner()

@@ -258,16 +258,12 @@ impl Partition {
                 }
             }
         };
-        let mut work = shares.into_iter().zip(scratch.iter_mut());
-        let first = work.next();
-        std::thread::scope(|scope| {
-            for (share, slot) in work {
-                scope.spawn(move || run(share, slot));
-            }
-            if let Some((share, slot)) = first {
+        crate::threads::sync::on_threads(
+            shares.into_iter().zip(scratch.iter_mut()),
+            |(share, slot)| {
                 run(share, slot);
-            }
-        });
+            },
+        );
     }
 
     /// The movable bodies that two domains hold (`shared`), and each domain's links to them.

@@ -32,7 +32,7 @@ impl Cell3 {
 }
 
 pub(crate) use deepcontact_core::threads::{
-    AbortOnPanic, effective_threads, lock, wait_unless_aborted,
+    AbortOnPanic, effective_threads, lock, on_threads, wait_unless_aborted,
 };
 
 /// Runs iterations of phased work on `threads` threads (≥ 1; the caller is one of them).
@@ -133,13 +133,7 @@ pub(crate) fn run_phased(
             }
         }
     };
-    std::thread::scope(|scope| {
-        for t in 1..threads {
-            let work = &work;
-            scope.spawn(move || work(t));
-        }
-        work(0);
-    });
+    on_threads(0..threads, work);
     judged.0.load(Mem::Acquire) as u32
 }
 
