@@ -82,21 +82,26 @@ pub fn effective_threads(requested: usize) -> usize {
 }
 
 /// The helper threads kept for the process (`cores() − 1` of them, built at the first shared
-/// stage that wants one); `None` on one core or when the OS refuses the threads.
+/// stage that wants one); `None` on one core, when the OS refuses the threads, and in a child
+/// forked after they were built (a fork copies the pool's state but not its threads, so a
+/// share handed to them would never run).
 fn kept_pool() -> Option<&'static rayon::ThreadPool> {
-    static POOL: OnceLock<Option<rayon::ThreadPool>> = OnceLock::new();
-    POOL.get_or_init(|| {
-        let helpers = cores().saturating_sub(1);
-        if helpers == 0 {
-            return None;
-        }
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(helpers)
-            .thread_name(|i| format!("deepcontact-helper-{i}"))
-            .build()
-            .ok()
-    })
-    .as_ref()
+    static POOL: OnceLock<Option<(u32, rayon::ThreadPool)>> = OnceLock::new();
+    let (pid, pool) = POOL
+        .get_or_init(|| {
+            let helpers = cores().saturating_sub(1);
+            if helpers == 0 {
+                return None;
+            }
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(helpers)
+                .thread_name(|i| format!("deepcontact-helper-{i}"))
+                .build()
+                .ok()?;
+            Some((std::process::id(), pool))
+        })
+        .as_ref()?;
+    (*pid == std::process::id()).then_some(pool)
 }
 
 /// Set while a stage runs on the kept helpers: a second stage at the same time (another
