@@ -115,8 +115,8 @@ static KEPT_IN_USE: AtomicBool = AtomicBool::new(false);
 /// The shares run on helper threads kept for the process while they are free and enough:
 /// starting a thread for every stage costs the caller tens of µs (≈ 3 stages a step on a
 /// large world), and the thread starts later than a kept one wakes (docs/PERFORMANCE.md,
-/// "Threads kept for the process"). Otherwise (the helpers busy with another stage, a share that starts a stage, more
-/// shares than cores) each share gets a thread started for it. Either way every share runs at
+/// "Threads kept for the process"). Otherwise (the helpers busy with another stage, a share
+/// that starts a stage, more shares than cores) each share gets a thread started for it. Either way every share runs at
 /// the same time as the others, so shares may wait for one another (a barrier), and what a
 /// share computes must not depend on which thread runs it.
 pub fn on_threads<T: Send>(shares: impl IntoIterator<Item = T>, work: impl Fn(T) + Sync) {

@@ -260,9 +260,7 @@ impl Partition {
         };
         crate::threads::sync::on_threads(
             shares.into_iter().zip(scratch.iter_mut()),
-            |(share, slot)| {
-                run(share, slot);
-            },
+            |(share, slot)| run(share, slot),
         );
     }
 
