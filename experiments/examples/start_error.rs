@@ -53,10 +53,12 @@ fn solve(
     solve_from(&mut PgsSolver::new(), problem, start, &settings).expect("a recorded problem solves")
 }
 
+/// The impulses as one vector of rows, normal then tangent per point.
 fn flat(x: &[Impulse]) -> Vec<f64> {
     x.iter().flat_map(|i| [i.normal, i.tangent]).collect()
 }
 
+/// [`flat`] undone, the normals clamped at 0.
 fn unflat(x: &[f64]) -> Vec<Impulse> {
     x.chunks(2)
         .map(|c| Impulse::new(c[0].max(0.0), c[1]))
@@ -68,7 +70,8 @@ fn minus(a: &[f64], b: &[f64]) -> Vec<f64> {
     a.iter().zip(b).map(|(x, y)| x - y).collect()
 }
 
-fn norm2(a: &[f64]) -> f64 {
+/// `‖a‖²`.
+fn norm_squared(a: &[f64]) -> f64 {
     a.iter().map(|x| x * x).sum()
 }
 
@@ -168,9 +171,9 @@ fn analyse(
         points: problem.len(),
         from_carried,
         from_zero,
-        error_l2: norm2(&e).sqrt(),
-        slow_share: norm2(&slow) / norm2(&e).max(1e-300),
-        velocity_error: norm2(&we).sqrt(),
+        error_l2: norm_squared(&e).sqrt(),
+        slow_share: norm_squared(&slow) / norm_squared(&e).max(1e-300),
+        velocity_error: norm_squared(&we).sqrt(),
         slow_only,
         fast_only,
         without_slow,
@@ -203,19 +206,22 @@ fn parse() -> Result<Option<Options>, Box<dyn std::error::Error>> {
         slow: vec![0.1],
         cap: 1000,
     };
-    let list = |text: String| -> Result<Vec<f64>, Box<dyn std::error::Error>> {
-        Ok(text
-            .split(',')
-            .map(|s| s.trim().parse())
-            .collect::<Result<_, _>>()?)
-    };
+    /// A comma-separated list of numbers.
+    fn list<T: std::str::FromStr>(text: &str) -> Result<Vec<T>, String>
+    where
+        T::Err: std::fmt::Display,
+    {
+        text.split(',')
+            .map(|s| s.trim().parse().map_err(|e| format!("`{s}`: {e}")))
+            .collect()
+    }
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         let mut value = || args.next().ok_or(format!("{a} needs a value"));
         match a.as_str() {
             "--bodies" => o.bodies = value()?.parse()?,
-            "--steps" => o.steps = list(value()?)?.into_iter().map(|s| s as u64).collect(),
-            "--slow" => o.slow = list(value()?)?,
+            "--steps" => o.steps = list(&value()?)?,
+            "--slow" => o.slow = list(&value()?)?,
             "--cap" => o.cap = value()?.parse()?,
             "-h" | "--help" => return Ok(None),
             seeds if !seeds.starts_with('-') => {
