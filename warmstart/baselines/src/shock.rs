@@ -31,6 +31,10 @@ pub struct ShockWarmStart {
     /// Per body: Σ (n·up) over its supporting points.
     support: Vec<Real>,
     estimate: Vec<Real>,
+    /// Per body, where its points start in `points_of`, then the end (`bodies + 1` entries).
+    first: Vec<u32>,
+    /// The points of each body, body by body, each body's in ascending order.
+    points_of: Vec<u32>,
 }
 
 impl ShockWarmStart {
@@ -50,6 +54,8 @@ impl ShockWarmStart {
             load: Vec::new(),
             support: Vec::new(),
             estimate: Vec::new(),
+            first: Vec::new(),
+            points_of: Vec::new(),
         })
     }
 
@@ -94,6 +100,31 @@ impl ShockWarmStart {
                 }
             }
         }
+        // Each body's points, ascending (a counting sort by body): the visit below reads a
+        // body's own points instead of scanning every point for each body.
+        self.first.clear();
+        self.first.resize(nb + 1, 0);
+        for p in &problem.points {
+            self.first[p.body_a as usize + 1] += 1;
+            self.first[p.body_b as usize + 1] += 1;
+        }
+        for b in 0..nb {
+            self.first[b + 1] += self.first[b];
+        }
+        self.points_of.clear();
+        self.points_of.resize(2 * problem.points.len(), 0);
+        for (i, p) in problem.points.iter().enumerate() {
+            for body in [p.body_a as usize, p.body_b as usize] {
+                // `first[body]` is the body's next free slot while filling, then its end.
+                self.points_of[self.first[body] as usize] = i as u32;
+                self.first[body] += 1;
+            }
+        }
+        // Back from ends to starts.
+        for b in (1..=nb).rev() {
+            self.first[b] = self.first[b - 1];
+        }
+        self.first[0] = 0;
         self.order.clear();
         self.order.extend(0..nb);
         let height = |b: usize| problem.bodies[b].position.dot(&up);
@@ -107,10 +138,9 @@ impl ShockWarmStart {
                 continue;
             }
             let per_lift = self.load[body] / self.support[body];
-            for (i, p) in problem.points.iter().enumerate() {
-                if p.body_a as usize != body && p.body_b as usize != body {
-                    continue;
-                }
+            let own = self.first[body] as usize..self.first[body + 1] as usize;
+            for &i in &self.points_of[own] {
+                let (i, p) = (i as usize, &problem.points[i as usize]);
                 let lift = Self::lift(ctx, i, body, &up);
                 if lift <= 0.0 {
                     continue;

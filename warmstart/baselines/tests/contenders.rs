@@ -150,6 +150,55 @@ fn shock_propagation_finds_the_loads_of_a_column_from_nothing() {
 }
 
 #[test]
+fn shock_splits_a_bridges_weight_between_the_columns_it_rests_on() {
+    // Two columns of 3 circles, then a bridge resting on both tops: each top circle's points
+    // (its support, then the bridge's, after the other column's) are apart in the list.
+    let (n, x) = (3, 2.0);
+    let mut problem = ContactProblem::new();
+    add_column(&mut problem, n, 0.0);
+    add_column(&mut problem, n, x);
+    let tops = [n as u32, 2 * n as u32 + 1];
+    let bridge = problem.add_body(ProblemBody::dynamic(
+        Vector::new(0.5 * x, n as f64 + 0.5),
+        0.0,
+        Vector::new(0.0, -G * DT),
+        0.0,
+        MASS,
+        MASS / 8.0,
+    ));
+    for (k, top) in tops.into_iter().enumerate() {
+        problem.begin_manifold();
+        let at = Vector::new(k as f64 * x, n as f64);
+        let id = ContactId {
+            body_a: top,
+            body_b: bridge,
+            feature_a: k as u64,
+            ..ContactId::default()
+        };
+        let desc = PointDesc::new(top, bridge, at, Vector::new(0.0, 1.0))
+            .id(id)
+            .friction(0.5);
+        problem.add_point(&desc).unwrap();
+    }
+    let start = start_of(
+        &mut ShockWarmStart::new(0.5).unwrap(),
+        &problem,
+        &vec![None; problem.len()],
+        0,
+    );
+    // Point k of a column (0 at the bottom) holds the n − k circles above it and half the
+    // bridge; each of the bridge's points, half the bridge.
+    let load = |bodies: f64| bodies * MASS * G * DT;
+    let mut want: Vec<f64> = (0..n).map(|k| load((n - k) as f64 + 0.5)).collect();
+    want.extend_from_within(..);
+    want.extend([load(0.5); 2]);
+    assert_eq!(start.len(), want.len());
+    for (got, want) in start.iter().zip(want) {
+        assert!((got.normal - want).abs() < 1e-12, "{got:?} vs {want}");
+    }
+}
+
+#[test]
 fn shock_blends_with_carried_impulses() {
     let problem = column(2);
     let carried = [Some(Impulse::ZERO), Some(Impulse::ZERO)];
