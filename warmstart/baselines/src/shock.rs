@@ -101,30 +101,26 @@ impl ShockWarmStart {
             }
         }
         // Each body's points, ascending (a counting sort by body): the visit below reads a
-        // body's own points instead of scanning every point for each body.
+        // body's own points instead of scanning every point for each body. `first[b]` counts
+        // up to the end of body b's run, then the fill, from the last point down, moves it back
+        // to the run's start.
         self.first.clear();
         self.first.resize(nb + 1, 0);
         for p in &problem.points {
-            self.first[p.body_a as usize + 1] += 1;
-            self.first[p.body_b as usize + 1] += 1;
+            self.first[p.body_a as usize] += 1;
+            self.first[p.body_b as usize] += 1;
         }
-        for b in 0..nb {
-            self.first[b + 1] += self.first[b];
+        for b in 1..=nb {
+            self.first[b] += self.first[b - 1];
         }
         self.points_of.clear();
         self.points_of.resize(2 * problem.points.len(), 0);
-        for (i, p) in problem.points.iter().enumerate() {
+        for (i, p) in problem.points.iter().enumerate().rev() {
             for body in [p.body_a as usize, p.body_b as usize] {
-                // `first[body]` is the body's next free slot while filling, then its end.
+                self.first[body] -= 1;
                 self.points_of[self.first[body] as usize] = i as u32;
-                self.first[body] += 1;
             }
         }
-        // Back from ends to starts.
-        for b in (1..=nb).rev() {
-            self.first[b] = self.first[b - 1];
-        }
-        self.first[0] = 0;
         self.order.clear();
         self.order.extend(0..nb);
         let height = |b: usize| problem.bodies[b].position.dot(&up);
