@@ -18,7 +18,7 @@
 //! ```
 
 use deepcontact_core::{ContactProblem, Impulse, SolverSettings};
-use deepcontact_experiments::record::{IslandRecorder, solve_from};
+use deepcontact_experiments::record::{IslandRecorder, pgs_iterations, solve_from};
 use deepcontact_lcp::{AssemblyMode, DEFAULT_DENSE_THRESHOLD, Delassus};
 use deepcontact_pgs::PgsSolver;
 use faer::{Mat, Side};
@@ -108,7 +108,7 @@ fn analyse(
         tolerance,
         o.cap,
     );
-    let (_, exact) = solve(problem, carried, 1e-10, 200_000);
+    let (_, exact) = pgs_iterations(problem, carried, 1e-10).expect("a recorded problem solves");
     let (x, c) = (flat(&exact), flat(carried));
     let e = minus(&x, &c);
     let mut delassus = Delassus::new();
