@@ -5,14 +5,15 @@
 //! halted; docs/PERFORMANCE.md), about what the narrow phase of a 10 000-body pile hands to it. So the helpers are
 //! started first, before the bounds, and stay through the stage: each phase is a list of
 //! chunks that the stepping thread and the helpers claim from one counter, a helper that
-//! arrives late takes fewer, and between phases the stepping thread does the serial parts
-//! (the entries' counting sort, the pairs' radix sort) while the helpers spin. The stages in
-//! order:
+//! arrives late takes fewer, and between phases the stepping thread does the serial part
+//! (the pairs' radix sort) while the helpers spin. The stages in order:
 //!
 //! 1. **Bounds**: chunks of bodies, each body's AABB and parry2d pose, binned into the grid of
 //!    the previous call's cell size (the pairs do not depend on the cell size).
-//! 2. *Serial*: the chunks' outputs joined in body order, the entries sorted by cell, the cells
-//!    cut into chunks of whole cells.
+//! 2. **Join**: two items, each reading every bounds chunk in body order: the bodies' AABBs,
+//!    kinds, first cells and poses copied into one array each; and the entries and large
+//!    bodies joined, the entries sorted by cell, the cells cut into chunks of whole cells. The
+//!    two write nothing the other reads, so they run side by side.
 //! 3. **Cell pairs**: chunks of whole cells, the large bodies against chunks of bodies, and one
 //!    chunk for the next call's cell size (twice the median extent).
 //! 4. *Serial*: the pairs joined, sorted and deduplicated: the broad phase's pairs.
@@ -77,23 +78,24 @@ impl Bounds {
         self.entries.clear();
         self.large.clear();
     }
-
-    /// Appends `o`'s bodies after these.
-    fn extend(&mut self, o: &Bounds) {
-        self.aabbs.extend_from_slice(&o.aabbs);
-        self.kinds.extend_from_slice(&o.kinds);
-        self.first.extend_from_slice(&o.first);
-        self.poses.extend_from_slice(&o.poses);
-        self.entries.extend_from_slice(&o.entries);
-        self.large.extend_from_slice(&o.large);
-    }
 }
 
-/// What the threads read in a phase: the joined outputs of the phases before.
+/// Every body's bounds in body order, joined from the bounds chunks (the join's first item).
+#[derive(Debug, Default)]
+struct BodyBounds {
+    aabbs: Vec<Aabb>,
+    kinds: Vec<BodyKind>,
+    first: Vec<(i64, i64)>,
+    poses: Vec<Pose>,
+}
+
+/// What the threads read in a phase besides [`BodyBounds`]: the join's second item and the
+/// serial part's outputs.
 #[derive(Debug, Default)]
 struct Joined {
-    /// Every body's bounds, the entries sorted by cell.
-    bounds: Bounds,
+    /// The `(cell, body)` entries sorted by cell, and the large bodies.
+    entries: Vec<(u64, u32)>,
+    large: Vec<u32>,
     /// Where the cell-pairs chunks cut the entries (from 0 to their count).
     cuts: Vec<usize>,
     /// Chunks of whole cells, then chunks of the large bodies' tests.
@@ -137,6 +139,7 @@ struct Scratch {
 /// The shared collide stage's buffers, kept between steps.
 #[derive(Debug, Default)]
 pub(crate) struct SharedCollide {
+    bodies: BodyBounds,
     joined: Joined,
     chunks: Vec<Chunk>,
     scratch: Scratch,
@@ -156,17 +159,20 @@ impl Clone for SharedCollide {
 
 /// The phases the threads share, in order.
 const BOUNDS: usize = 0;
-const CELL_PAIRS: usize = 1;
-const MANIFOLDS: usize = 2;
+const JOIN: usize = 1;
+const CELL_PAIRS: usize = 2;
+const MANIFOLDS: usize = 3;
+/// The phases, in order.
+const PHASES: [usize; 4] = [BOUNDS, JOIN, CELL_PAIRS, MANIFOLDS];
 
 /// The chunk queue of one call: per phase, its chunk count once published, the next chunk to
 /// claim and the chunks done.
 #[derive(Default)]
 struct Queue {
     published: AtomicUsize,
-    count: [AtomicUsize; 3],
-    next: [AtomicUsize; 3],
-    done: [AtomicUsize; 3],
+    count: [AtomicUsize; 4],
+    next: [AtomicUsize; 4],
+    done: [AtomicUsize; 4],
     /// Chunks the helpers took, all phases.
     helped: AtomicUsize,
     aborted: AtomicBool,
@@ -207,7 +213,7 @@ impl Queue {
     /// A helper: every phase, as it is published.
     fn help(&self, work: &impl Fn(usize, usize)) {
         let _abort = AbortOnPanic(&self.aborted);
-        for phase in [BOUNDS, CELL_PAIRS, MANIFOLDS] {
+        for phase in PHASES {
             if !wait_unless_aborted(&self.aborted, || self.published.load(Mem::Acquire) > phase) {
                 return;
             }
@@ -246,30 +252,47 @@ impl SharedCollide {
             self.chunks.resize_with(wanted.max(4), Chunk::default);
         }
         let buffers = self.chunks.len();
-        let (joined, scratch) = (RwLock::new(&mut self.joined), &mut self.scratch);
+        let bound_chunks = n.div_ceil(BODY_CHUNK);
+        let (per_body, joined) = (RwLock::new(&mut self.bodies), RwLock::new(&mut self.joined));
+        let scratch = Mutex::new(&mut self.scratch);
         let chunks: Vec<Mutex<&mut Chunk>> = self.chunks.iter_mut().map(Mutex::new).collect();
-        let work = |phase: usize, c: usize| {
-            let mut chunk = lock(&chunks[c]);
-            match phase {
-                BOUNDS => bounds_chunk(bodies, c, margin, inv, &mut chunk),
-                CELL_PAIRS => cell_pairs_chunk(&read(&joined), c, &mut chunk),
-                _ => manifolds_chunk(bodies, &read(&joined), c, margin, &mut chunk),
+        let work = |phase: usize, c: usize| match phase {
+            BOUNDS => bounds_chunk(bodies, c, margin, inv, &mut lock(&chunks[c])),
+            JOIN if c == 0 => join_bodies(&mut write(&per_body), &chunks[..bound_chunks], n),
+            JOIN => {
+                let mut joined = write(&joined);
+                join_entries(&mut joined, &mut lock(&scratch), &chunks[..bound_chunks]);
+                joined.plan_cell_pairs(buffers - 1, n);
             }
+            CELL_PAIRS => {
+                cell_pairs_chunk(&read(&per_body), &read(&joined), c, &mut lock(&chunks[c]))
+            }
+            _ => manifolds_chunk(
+                bodies,
+                &read(&per_body),
+                &read(&joined),
+                c,
+                margin,
+                &mut lock(&chunks[c]),
+            ),
         };
         let queue = Queue::default();
         let mut next_inv = inv;
         let mut pair_chunks = 0;
         let lead = || {
             let _abort = AbortOnPanic(&queue.aborted);
-            queue.publish(BOUNDS, n.div_ceil(BODY_CHUNK));
+            queue.publish(BOUNDS, bound_chunks);
             queue.take(BOUNDS, &work);
             if !queue.finished(BOUNDS) {
                 return;
             }
+            queue.publish(JOIN, 2);
+            queue.take(JOIN, &work);
+            if !queue.finished(JOIN) {
+                return;
+            }
             let cell_chunks = {
-                let mut joined = write(&joined);
-                join_bounds(&mut joined, scratch, &chunks, n);
-                joined.plan_cell_pairs(buffers - 1, n);
+                let joined = read(&joined);
                 // And one for the next call's cell size.
                 joined.cell_chunks + joined.large_chunks + 1
             };
@@ -280,7 +303,12 @@ impl SharedCollide {
             }
             pair_chunks = {
                 let mut joined = write(&joined);
-                join_pairs(&mut joined, scratch, &chunks[..cell_chunks - 1], n);
+                join_pairs(
+                    &mut joined,
+                    &mut lock(&scratch),
+                    &chunks[..cell_chunks - 1],
+                    n,
+                );
                 next_inv = lock(&chunks[cell_chunks - 1]).inv;
                 joined.pair_chunk = PAIR_CHUNK.max(joined.pairs.len().div_ceil(buffers));
                 joined.pairs.len().div_ceil(joined.pair_chunk)
@@ -323,14 +351,14 @@ impl Joined {
     /// Cuts the sorted entries into chunks of whole cells and the large bodies' tests into
     /// chunks of the bodies, `buffers` chunks at most in all (`n` bodies).
     fn plan_cell_pairs(&mut self, buffers: usize, n: usize) {
-        self.large_chunks = if self.bounds.large.is_empty() {
+        self.large_chunks = if self.large.is_empty() {
             0
         } else {
             n.div_ceil(LARGE_CHUNK).min(buffers / 2).max(1)
         };
         let room = (buffers - self.large_chunks).max(1);
-        let size = ENTRY_CHUNK.max(self.bounds.entries.len().div_ceil(room));
-        cell_cuts(&self.bounds.entries, size, &mut self.cuts);
+        let size = ENTRY_CHUNK.max(self.entries.len().div_ceil(room));
+        cell_cuts(&self.entries, size, &mut self.cuts);
         // Whole cells may overrun a chunk's size: cuts beyond the room are merged into the
         // last chunk.
         if self.cuts.len() - 1 > room {
@@ -372,17 +400,45 @@ fn bounds_chunk(bodies: &[Body], c: usize, margin: Real, inv: Real, chunk: &mut 
     }
 }
 
-/// The bounds chunks joined in body order, the entries sorted by cell.
-fn join_bounds(joined: &mut Joined, scratch: &mut Scratch, chunks: &[Mutex<&mut Chunk>], n: usize) {
-    joined.bounds.clear();
+/// The join's first item: the `n` bodies' bounds, from the bounds `chunks` in body order. (Read
+/// from the last chunk down: the second item reads them from the first up, so the two seldom
+/// want one chunk's lock at once.)
+fn join_bodies(into: &mut BodyBounds, chunks: &[Mutex<&mut Chunk>], n: usize) {
+    let zero = crate::math::Vector::zeros();
+    into.aabbs.resize(
+        n,
+        Aabb {
+            min: zero,
+            max: zero,
+        },
+    );
+    into.kinds.resize(n, BodyKind::Static);
+    into.first.resize(n, (0, 0));
+    into.poses.resize(n, Pose::identity());
+    for (c, chunk) in chunks.iter().enumerate().rev() {
+        let b = &lock(chunk).bounds;
+        let range = c * BODY_CHUNK..c * BODY_CHUNK + b.aabbs.len();
+        into.aabbs[range.clone()].copy_from_slice(&b.aabbs);
+        into.kinds[range.clone()].copy_from_slice(&b.kinds);
+        into.first[range.clone()].copy_from_slice(&b.first);
+        into.poses[range].copy_from_slice(&b.poses);
+    }
+}
+
+/// The join's second item: the bounds `chunks`' entries and large bodies joined in body order,
+/// the entries sorted by cell.
+fn join_entries(joined: &mut Joined, scratch: &mut Scratch, chunks: &[Mutex<&mut Chunk>]) {
+    joined.entries.clear();
+    joined.large.clear();
     let mut cells = CellBox::default();
-    for chunk in &chunks[..n.div_ceil(BODY_CHUNK)] {
+    for chunk in chunks {
         let chunk = lock(chunk);
-        joined.bounds.extend(&chunk.bounds);
+        joined.entries.extend_from_slice(&chunk.bounds.entries);
+        joined.large.extend_from_slice(&chunk.bounds.large);
         cells.merge(&chunk.cells);
     }
     sort_entries(
-        &mut joined.bounds.entries,
+        &mut joined.entries,
         &mut scratch.sorted_entries,
         &mut scratch.counts,
         &cells,
@@ -391,15 +447,14 @@ fn join_bounds(joined: &mut Joined, scratch: &mut Scratch, chunks: &[Mutex<&mut 
 
 /// Cell-pairs chunk `c`: the pairs of its cells, or, past the cells' chunks, of the large
 /// bodies with its share of the bodies, or, last, the next call's cell size.
-fn cell_pairs_chunk(joined: &Joined, c: usize, chunk: &mut Chunk) {
+fn cell_pairs_chunk(b: &BodyBounds, joined: &Joined, c: usize, chunk: &mut Chunk) {
     chunk.pairs.clear();
-    let b = &joined.bounds;
     let (aabbs, kinds) = (&b.aabbs, &b.kinds);
     if c == joined.cell_chunks + joined.large_chunks {
         chunk.inv = 1.0 / cell_size(&mut chunk.extents, aabbs.iter().copied());
     } else if c < joined.cell_chunks {
         cell_pairs(
-            &b.entries[joined.cuts[c]..joined.cuts[c + 1]],
+            &joined.entries[joined.cuts[c]..joined.cuts[c + 1]],
             cell_body(aabbs, &b.first, kinds),
             &mut chunk.cell,
             &mut chunk.pairs,
@@ -410,7 +465,7 @@ fn cell_pairs_chunk(joined: &Joined, c: usize, chunk: &mut Chunk) {
         let per = n.div_ceil(joined.large_chunks);
         let (start, end) = ((k * per).min(n), ((k + 1) * per).min(n));
         large_pairs(
-            &b.large,
+            &joined.large,
             start as u32..end as u32,
             |i| aabbs[i as usize],
             |i| kinds[i as usize],
@@ -434,14 +489,21 @@ fn join_pairs(joined: &mut Joined, scratch: &mut Scratch, chunks: &[Mutex<&mut C
 }
 
 /// Manifolds chunk `c`: the contacts of its pairs.
-fn manifolds_chunk(bodies: &[Body], joined: &Joined, c: usize, margin: Real, chunk: &mut Chunk) {
+fn manifolds_chunk(
+    bodies: &[Body],
+    b: &BodyBounds,
+    joined: &Joined,
+    c: usize,
+    margin: Real,
+    chunk: &mut Chunk,
+) {
     let start = (c * joined.pair_chunk).min(joined.pairs.len());
     let end = (start + joined.pair_chunk).min(joined.pairs.len());
     chunk.contacts.clear();
     chunk.ranges.clear();
     collide_pairs(
         bodies,
-        &joined.bounds.poses,
+        &b.poses,
         &joined.pairs[start..end],
         margin,
         &mut chunk.manifolds,
@@ -538,7 +600,8 @@ pub(crate) mod tests {
                 assert_eq!(got, pairs, "{threads} threads");
                 assert!(bits(&narrow) == expected, "{threads} threads");
                 let joined = &shared.joined;
-                assert!(!joined.bounds.large.is_empty() && joined.cell_chunks > 1);
+                assert!(!joined.large.is_empty() && joined.cell_chunks > 1);
+                assert_eq!(shared.bodies.poses.len(), bodies.len());
                 assert!(joined.pairs.len().div_ceil(joined.pair_chunk) > 1);
                 if threads == 1 {
                     assert_eq!(shared.helped, 0);
