@@ -145,8 +145,8 @@ pub(crate) struct SharedCollide {
     scratch: Scratch,
     /// `1 / cell size` of the last call (`None` before the first).
     inv: Option<Real>,
-    /// Chunks the helpers took in the last call.
-    helped: usize,
+    /// Chunks the helpers took in the last call, per phase.
+    helped: [usize; 4],
 }
 
 impl Clone for SharedCollide {
@@ -173,8 +173,8 @@ struct Queue {
     count: [AtomicUsize; 4],
     next: [AtomicUsize; 4],
     done: [AtomicUsize; 4],
-    /// Chunks the helpers took, all phases.
-    helped: AtomicUsize,
+    /// Chunks the helpers took, per phase.
+    helped: [AtomicUsize; 4],
     aborted: AtomicBool,
 }
 
@@ -218,7 +218,7 @@ impl Queue {
                 return;
             }
             let mine = self.take(phase, work);
-            self.helped.fetch_add(mine, Mem::Relaxed);
+            self.helped[phase].fetch_add(mine, Mem::Relaxed);
         }
     }
 }
@@ -325,7 +325,7 @@ impl SharedCollide {
         });
         drop(chunks);
         self.inv = Some(next_inv);
-        self.helped = queue.helped.load(Mem::Relaxed);
+        self.helped = PHASES.map(|p| queue.helped[p].load(Mem::Relaxed));
         narrow.contacts.clear();
         narrow.manifolds_ranges.clear();
         for chunk in &self.chunks[..pair_chunks] {
@@ -591,7 +591,8 @@ pub(crate) mod tests {
             // One shared collide reused (its cell size from the call before, after the
             // first), on 1 to 4 threads, twice each.
             let mut shared = SharedCollide::default();
-            let mut helped = 0;
+            // Chunks the helpers took, and of them the join's items.
+            let (mut helped, mut joined_by_helpers) = (0, 0);
             for threads in [1, 2, 3, 4, 2, 1, 4, 3] {
                 let mut narrow = NarrowPhase::new();
                 let got = shared
@@ -604,22 +605,29 @@ pub(crate) mod tests {
                 assert_eq!(shared.bodies.poses.len(), bodies.len());
                 assert!(joined.pairs.len().div_ceil(joined.pair_chunk) > 1);
                 if threads == 1 {
-                    assert_eq!(shared.helped, 0);
+                    assert_eq!(shared.helped, [0; 4]);
                 }
-                helped += shared.helped;
+                helped += shared.helped.iter().sum::<usize>();
+                joined_by_helpers += shared.helped[JOIN];
             }
             // A helper that starts late finds no chunk left (a busy machine, a small world):
-            // more calls until one took chunks, each with the serial bits.
+            // more calls until one took chunks and one took an item of the join, each with the
+            // serial bits.
             for _ in 0..500 {
-                if helped > 0 {
+                if helped > 0 && joined_by_helpers > 0 {
                     break;
                 }
                 let mut narrow = NarrowPhase::new();
                 assert_eq!(shared.collide(bodies, margin, 2, &mut narrow), &pairs[..]);
                 assert!(bits(&narrow) == expected);
-                helped += shared.helped;
+                helped += shared.helped.iter().sum::<usize>();
+                joined_by_helpers += shared.helped[JOIN];
             }
             assert!(helped > 0, "no helper took a chunk in 508 calls");
+            assert!(
+                joined_by_helpers > 0,
+                "no helper took a join item in 508 calls"
+            );
         }
     }
 
