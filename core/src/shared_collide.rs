@@ -157,13 +157,16 @@ impl Clone for SharedCollide {
     }
 }
 
-/// The phases the threads share, in order.
+/// The phases the threads share.
 const BOUNDS: usize = 0;
 const JOIN: usize = 1;
 const CELL_PAIRS: usize = 2;
 const MANIFOLDS: usize = 3;
 /// The phases, in order.
 const PHASES: [usize; 4] = [BOUNDS, JOIN, CELL_PAIRS, MANIFOLDS];
+/// The join's items: the bodies' bounds ([`join_bodies`]), then the entries ([`join_entries`]).
+const JOIN_BODIES: usize = 0;
+const JOIN_ITEMS: usize = 2;
 
 /// The chunk queue of one call: per phase, its chunk count once published, the next chunk to
 /// claim and the chunks done.
@@ -235,30 +238,17 @@ impl SharedCollide {
         narrow: &mut NarrowPhase,
     ) -> &[(u32, u32)] {
         let n = bodies.len();
-        let inv = match self.inv {
-            Some(inv) => inv,
-            None => {
-                let aabbs = bodies.iter().map(|b| bound(b, margin).0);
-                1.0 / cell_size(&mut self.scratch.extents, aabbs)
-            }
-        };
-        // Enough buffers for every bounds chunk and, at the last call's count, every
-        // manifolds chunk; the later phases' chunks grow to fit the buffers.
-        let wanted = n
-            .div_ceil(BODY_CHUNK)
-            .max(self.joined.pairs.len().div_ceil(PAIR_CHUNK));
-        // (At least four: two for the large bodies' tests, two for the cells.)
-        if self.chunks.len() < wanted.max(4) {
-            self.chunks.resize_with(wanted.max(4), Chunk::default);
-        }
-        let buffers = self.chunks.len();
         let bound_chunks = n.div_ceil(BODY_CHUNK);
+        let inv = self.prepare(bodies, margin, bound_chunks);
+        let buffers = self.chunks.len();
         let (per_body, joined) = (RwLock::new(&mut self.bodies), RwLock::new(&mut self.joined));
         let scratch = Mutex::new(&mut self.scratch);
         let chunks: Vec<Mutex<&mut Chunk>> = self.chunks.iter_mut().map(Mutex::new).collect();
         let work = |phase: usize, c: usize| match phase {
             BOUNDS => bounds_chunk(bodies, c, margin, inv, &mut lock(&chunks[c])),
-            JOIN if c == 0 => join_bodies(&mut write(&per_body), &chunks[..bound_chunks], n),
+            JOIN if c == JOIN_BODIES => {
+                join_bodies(&mut write(&per_body), &chunks[..bound_chunks], n);
+            }
             JOIN => {
                 let mut joined = write(&joined);
                 join_entries(&mut joined, &mut lock(&scratch), &chunks[..bound_chunks]);
@@ -286,7 +276,7 @@ impl SharedCollide {
             if !queue.finished(BOUNDS) {
                 return;
             }
-            queue.publish(JOIN, 2);
+            queue.publish(JOIN, JOIN_ITEMS);
             queue.take(JOIN, &work);
             if !queue.finished(JOIN) {
                 return;
@@ -317,7 +307,8 @@ impl SharedCollide {
             queue.take(MANIFOLDS, &work);
             queue.finished(MANIFOLDS);
         };
-        // The stepping thread leads (it joins and sorts between the phases); the others help.
+        // The stepping thread leads (it publishes the phases, and joins and sorts the pairs
+        // between two of them); the others help.
         let roles = std::iter::once(Some(lead)).chain((1..threads.max(1)).map(|_| None));
         on_threads(roles, |role| match role {
             Some(mut lead) => lead(),
@@ -336,6 +327,27 @@ impl SharedCollide {
                 .extend(chunk.ranges.iter().map(|&(s, e)| (s + offset, e + offset)));
         }
         &self.joined.pairs
+    }
+
+    /// Before a call on `bodies` (`bound_chunks` bounds chunks): the cell size to bin them in
+    /// (the last call's, or from their bounds on the first call), returned as `1 / size`; and
+    /// enough chunk buffers for every bounds chunk and, at the last call's count, every
+    /// manifolds chunk (the later phases' chunks grow to fit the buffers), at least four: two
+    /// for the large bodies' tests, two for the cells.
+    fn prepare(&mut self, bodies: &[Body], margin: Real, bound_chunks: usize) -> Real {
+        let wanted = bound_chunks
+            .max(self.joined.pairs.len().div_ceil(PAIR_CHUNK))
+            .max(4);
+        if self.chunks.len() < wanted {
+            self.chunks.resize_with(wanted, Chunk::default);
+        }
+        match self.inv {
+            Some(inv) => inv,
+            None => {
+                let aabbs = bodies.iter().map(|b| bound(b, margin).0);
+                1.0 / cell_size(&mut self.scratch.extents, aabbs)
+            }
+        }
     }
 }
 
