@@ -7,7 +7,7 @@ use crate::{
     AndersonConfig, AndersonWarmStart, BestOfWarmStart, CoarseConfig, CoarseWarmStart,
     ConstantWarmStart, ExtrapolatedWarmStart, KrylovConfig, KrylovWarmStart, OracleConfig,
     OracleOrder, OracleWarmStart, PresolveConfig, PresolveWarmStart, RandomConfig, RandomWarmStart,
-    RelaxedConfig, RelaxedWarmStart, Rounded, ShockWarmStart, TailConfig, TailWarmStart,
+    RelaxedConfig, RelaxedWarmStart, Rounded, Schedule, ShockWarmStart, TailConfig, TailWarmStart,
 };
 
 /// Registers `none`, `builtin`, `random`, `bad`, `copy`, `copy2` and `copy0` (the oracles
@@ -145,8 +145,8 @@ fn register_sor(registry: &mut Registry) {
         "sor",
         "carried impulses refined by over-relaxed Gauss-Seidel sweeps (PGS on effective masses scaled by omega); \
          omega=1.7, sweeps=300, tolerance=1e-4 (tuned on seeds 100–109), pairs=1 (two-point manifolds' factor; above 1 they are split into over-relaxed point rows), budget_omega=2 \
-         (largest factor under a pass budget), max_points=none (larger islands get the start unswept), start=builtin (a registered provider's name: \
-         the start the sweeps refine)",
+         (largest factor under a pass budget), max_points=none (larger islands get the start unswept), schedule=none (factors for equal shares of the \
+         sweeps, e.g. 1.8/1.2), start=builtin (a registered provider's name: the start the sweeps refine)",
         |p, r| {
             let d = RelaxedConfig::default();
             let config = RelaxedConfig {
@@ -157,6 +157,10 @@ fn register_sor(registry: &mut Registry) {
                 budget_omega: p.f64("budget_omega", d.budget_omega)?,
                 max_points: usize::try_from(p.u64("max_points", d.max_points as u64)?)
                     .unwrap_or(usize::MAX),
+                schedule: match p.string("schedule") {
+                    Some(text) => Schedule::parse("sor", text)?,
+                    None => d.schedule,
+                },
             };
             let provider = RelaxedWarmStart::new(config)?;
             Ok(Box::new(match p.string("start") {

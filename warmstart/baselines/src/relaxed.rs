@@ -32,6 +32,7 @@ use deepcontact_core::{
 use deepcontact_pgs::PgsSolver;
 
 use crate::inner::InnerSolve;
+use crate::{BudgetSchedules, Schedule};
 
 /// Parameters of [`RelaxedWarmStart`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -50,13 +51,20 @@ pub struct RelaxedConfig {
     /// over-relaxed by this factor; under a budget the pairs stay blocks (at K = 8 the split
     /// rows left a higher residual on the towers than the block solve; docs/RESEARCH.md).
     pub pairs: Real,
-    /// Largest factor under a pass budget, in [1, 2] (default 2: no cap). With few sweeps a
-    /// large ω overshoots and no sweep is left to settle it.
+    /// Largest factor under a pass budget, in [1, 2] (default 2: no cap), of `omega` and of a
+    /// policy's factors (not of a [`schedule`](Self::schedule)'s). With few sweeps a large ω
+    /// overshoots and no sweep is left to settle it.
     pub budget_omega: Real,
     /// Islands with more contact points than this get the start without sweeps (default
     /// `usize::MAX`: every island is swept). On a pile of a thousand bodies and more the
     /// sweeps do not bring the large island under the tolerance and cost more than they save.
     pub max_points: usize,
+    /// Factors for equal shares of the sweeps, in order (default [`Schedule::NONE`]: `omega`,
+    /// or the policy's per-point factors, for every sweep). With a schedule every single-point
+    /// manifold takes factor `j` in share `j` of the sweeps' cap (the budget's share, else
+    /// `sweeps`), as given (`budget_omega` does not cap it); the sweeps stop at the tolerance
+    /// as before. Each share rebuilds the relaxed copy and the solver's plan.
+    pub schedule: Schedule,
 }
 
 impl Default for RelaxedConfig {
@@ -68,6 +76,7 @@ impl Default for RelaxedConfig {
             pairs: 1.0,
             budget_omega: 2.0,
             max_points: usize::MAX,
+            schedule: Schedule::NONE,
         }
     }
 }
@@ -144,6 +153,8 @@ pub struct RelaxedWarmStart {
     gated: u64,
     /// Passes of the last island: the start's (when it sweeps) and the sweeps.
     last_passes: u32,
+    /// Schedules that replace [`RelaxedConfig::schedule`] under a pass budget.
+    budget_schedules: BudgetSchedules,
 }
 
 impl RelaxedWarmStart {
@@ -196,6 +207,7 @@ impl RelaxedWarmStart {
             dropped: 0,
             gated: 0,
             last_passes: 0,
+            budget_schedules: BudgetSchedules::default(),
         })
     }
 
@@ -215,6 +227,23 @@ impl RelaxedWarmStart {
         self
     }
 
+    /// The same provider with a schedule per pass budget: under a budget it sweeps by the
+    /// table's schedule for that budget ([`BudgetSchedules::for_pass_budget`]) instead of
+    /// [`RelaxedConfig::schedule`] (and instead of a policy's factors); without a budget the
+    /// table is not used.
+    pub fn with_budget_schedules(mut self, schedules: BudgetSchedules) -> Self {
+        self.budget_schedules = schedules;
+        self
+    }
+
+    /// The schedule of a call offered `pass_budget` passes (see
+    /// [`Self::with_budget_schedules`]).
+    fn schedule(&self, pass_budget: Option<u32>) -> Schedule {
+        pass_budget
+            .and_then(|b| self.budget_schedules.for_pass_budget(b))
+            .unwrap_or(self.config.schedule)
+    }
+
     /// Counts `sweeps` run on an island of `step`.
     fn count(&mut self, step: u64, sweeps: u32) {
         self.sweeps += u64::from(sweeps);
@@ -231,12 +260,51 @@ impl RelaxedWarmStart {
         }
     }
 
+    /// The sweeps of `schedule` from `out` (in place): each factor's share of
+    /// `cap` (the budget's share; else [`RelaxedConfig::sweeps`]) on a copy relaxed by it,
+    /// until a share stops at the tolerance. Returns the sweeps run and the first and last
+    /// impulse changes (∞-norm) of all of them.
+    fn scheduled(
+        &mut self,
+        schedule: &Schedule,
+        problem: &ContactProblem,
+        out: &mut [Impulse],
+        cap: Option<u32>,
+    ) -> Result<(u32, Option<Real>, Option<Real>), WarmStartError> {
+        let (mut sweeps, mut first, mut last) = (0, None, None);
+        for (omega, share) in schedule.shares(cap.unwrap_or(self.config.sweeps)) {
+            // A schedule's factors are its own: `budget_omega` caps `omega` and a policy's.
+            let config = RelaxedConfig {
+                omega,
+                budget_omega: 2.0,
+                ..self.config
+            };
+            relaxed_copy(&mut self.relaxed, problem, &config, None, cap.is_some());
+            self.inner.run(
+                &mut self.solver,
+                &self.relaxed,
+                out,
+                "over-relaxed sweeps",
+                Some(share),
+            )?;
+            let r = self.inner.report();
+            sweeps += r.iterations;
+            first = first.or(r.residual_inf.first().copied());
+            last = r.residual_inf.last().copied().or(last);
+            if r.converged {
+                break;
+            }
+        }
+        Ok((sweeps, first, last))
+    }
+
     /// The config.
     pub fn config(&self) -> &RelaxedConfig {
         &self.config
     }
 
-    /// The report of the last island's sweeps (their count is `iterations`).
+    /// The report of the last island's sweeps (their count is `iterations`; with a
+    /// [`RelaxedConfig::schedule`], of its last share).
     pub fn last_report(&self) -> &SolveReport {
         self.inner.report()
     }
@@ -282,7 +350,8 @@ impl WarmStart for RelaxedWarmStart {
         }
         self.first.clear();
         self.first.extend_from_slice(out);
-        if let Some(policy) = &mut self.relaxation {
+        let schedule = self.schedule(ctx.pass_budget);
+        if let Some(policy) = self.relaxation.as_mut().filter(|_| schedule.is_empty()) {
             policy.omegas(ctx, &mut self.omegas)?;
             if self.omegas.len() != problem.len() {
                 return Err(WarmStartError::WrongLength {
@@ -301,31 +370,37 @@ impl WarmStart for RelaxedWarmStart {
                 )));
             }
         }
-        let omegas = self.relaxation.is_some().then_some(&self.omegas[..]);
-        relaxed_copy(
-            &mut self.relaxed,
-            problem,
-            &self.config,
-            omegas,
-            ctx.pass_budget.is_some(),
-        );
         // Under a budget the start's own passes come out of the sweeps' share.
         let cap = ctx
             .pass_budget
             .map(|b| b.saturating_sub(self.last_passes).max(1));
-        self.inner.run(
-            &mut self.solver,
-            &self.relaxed,
-            out,
-            "over-relaxed sweeps",
-            cap,
-        )?;
-        self.last_passes += self.inner.passes();
-        let (sweeps, changes) = (
-            self.inner.report().iterations,
-            &self.inner.report().residual_inf,
-        );
-        let diverged = match (changes.first(), changes.last()) {
+        let (sweeps, first, last) = if schedule.is_empty() {
+            let omegas = self.relaxation.is_some().then_some(&self.omegas[..]);
+            relaxed_copy(
+                &mut self.relaxed,
+                problem,
+                &self.config,
+                omegas,
+                ctx.pass_budget.is_some(),
+            );
+            self.inner.run(
+                &mut self.solver,
+                &self.relaxed,
+                out,
+                "over-relaxed sweeps",
+                cap,
+            )?;
+            let r = self.inner.report();
+            (
+                r.iterations,
+                r.residual_inf.first().copied(),
+                r.residual_inf.last().copied(),
+            )
+        } else {
+            self.scheduled(&schedule, problem, out, cap)?
+        };
+        self.last_passes += sweeps;
+        let diverged = match (first, last) {
             // Growing changes, or a NaN among them.
             (Some(first), Some(last)) => last > first || last.is_nan() || first.is_nan(),
             _ => false,

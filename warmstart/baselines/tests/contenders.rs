@@ -11,7 +11,7 @@ use deepcontact_pgs::PgsSolver;
 use deepcontact_warmstart::{
     AndersonConfig, AndersonWarmStart, BestOfWarmStart, CoarseConfig, CoarseWarmStart,
     ExtrapolatedWarmStart, KrylovConfig, KrylovWarmStart, PresolveConfig, PresolveWarmStart,
-    RelaxedConfig, RelaxedWarmStart, ShockWarmStart, TailConfig, TailWarmStart,
+    RelaxedConfig, RelaxedWarmStart, Schedule, ShockWarmStart, TailConfig, TailWarmStart,
 };
 
 const DT: f64 = 0.01;
@@ -467,6 +467,7 @@ fn over_relaxed_sweeps_cut_the_world_iterations_and_the_total() {
         pairs: 1.0,
         budget_omega: 2.0,
         max_points: usize::MAX,
+        schedule: Schedule::NONE,
     };
     let start = start_of(
         &mut RelaxedWarmStart::new(plain).unwrap(),
@@ -495,6 +496,7 @@ fn over_relaxed_sweeps_cut_the_world_iterations_and_the_total() {
             pairs,
             budget_omega: 2.0,
             max_points: usize::MAX,
+            schedule: Schedule::NONE,
         };
         assert!(RelaxedWarmStart::new(config).is_err(), "{config:?}");
     }
@@ -538,6 +540,7 @@ fn sor_refines_the_start_of_another_provider() {
         pairs: 1.0,
         budget_omega: 2.0,
         max_points: usize::MAX,
+        schedule: Schedule::NONE,
     };
     let mut from_zeros = RelaxedWarmStart::new(plain)
         .unwrap()
@@ -651,6 +654,80 @@ fn sor_budget_omega_caps_the_factors_under_a_budget_only() {
     assert_eq!(run(1.7, 1.0, Some(8)), run(1.0, 2.0, Some(8)));
     assert_ne!(run(1.7, 2.0, Some(8)), run(1.0, 2.0, Some(8)));
     assert_eq!(run(1.7, 1.0, None), run(1.7, 2.0, None));
+}
+
+/// A schedule's factors run in equal shares of the sweeps: one factor is the constant factor bit
+/// for bit; under a budget of 8 two factors spend the provider's 7 passes (3 at the first, 4 at
+/// the second, one relaxed copy each), and a schedule that ends at ω = 1 leaves other bits than
+/// either constant.
+#[test]
+fn sor_schedule_runs_its_factors_in_equal_shares_of_the_sweeps() {
+    use deepcontact_core::{WorldSettings, scene};
+    use deepcontact_pgs::PgsPositionSolver;
+    let run = |omega: f64, schedule: &[f64]| -> (Vec<u64>, Vec<u32>) {
+        let settings = WorldSettings {
+            budget: Some(8),
+            ..WorldSettings::default()
+        };
+        let mut world = scene::pile(100, 100).unwrap().build(settings).unwrap();
+        let config = RelaxedConfig {
+            omega,
+            tolerance: 0.0,
+            schedule: if schedule.is_empty() {
+                Schedule::NONE
+            } else {
+                Schedule::new("sor", schedule).unwrap()
+            },
+            ..RelaxedConfig::default()
+        };
+        let mut sor = RelaxedWarmStart::new(config).unwrap();
+        let (mut solver, mut position) = (PgsSolver::new(), PgsPositionSolver::new());
+        let (mut bits, mut passes) = (Vec::new(), Vec::new());
+        for _ in 0..80 {
+            let r = world.step(&mut sor, &mut solver, &mut position).unwrap();
+            bits.push(r.natural_residual.to_bits());
+            if r.contacts > 0 {
+                passes.push(sor.passes_spent());
+            }
+        }
+        assert!(passes.len() > 30, "{} steps with contacts", passes.len());
+        (bits, passes)
+    };
+    let constant = run(1.5, &[]);
+    assert_eq!(
+        run(1.9, &[1.5]),
+        constant,
+        "one factor is the constant factor"
+    );
+    let (bits, passes) = run(1.5, &[1.8, 1.0]);
+    assert!(passes.iter().all(|&p| p == 7), "{passes:?}");
+    assert_ne!(bits, constant.0);
+    assert_ne!(bits, run(1.8, &[]).0);
+    // The shares' edges: the sweeps of 1.8 then 1.0 are those of a 3-sweep ω = 1.8 provider
+    // followed by 4 plain PGS sweeps.
+    let (problem, _, carried) = short_of_load(12);
+    let scheduled = RelaxedConfig {
+        tolerance: 0.0,
+        sweeps: 7,
+        schedule: Schedule::new("sor", &[1.8, 1.0]).unwrap(),
+        ..RelaxedConfig::default()
+    };
+    let first = RelaxedConfig {
+        omega: 1.8,
+        tolerance: 0.0,
+        sweeps: 3,
+        ..RelaxedConfig::default()
+    };
+    let mut sor = RelaxedWarmStart::new(scheduled).unwrap();
+    let start = start_of(&mut sor, &problem, &carried, 1);
+    assert_eq!(sor.passes_spent(), 7);
+    let three = start_of(
+        &mut RelaxedWarmStart::new(first).unwrap(),
+        &problem,
+        &carried,
+        1,
+    );
+    assert_eq!(start, pgs_sweeps(&problem, &three, 4));
 }
 
 #[test]

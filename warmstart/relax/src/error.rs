@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-/// Errors from loading a relaxation policy.
+/// Errors from loading a relaxation policy or learned schedules.
 #[derive(Debug, thiserror::Error)]
 pub enum RelaxError {
     /// Reading the policy file failed.
@@ -28,6 +28,14 @@ pub enum RelaxError {
         /// The file (or `<embedded>`).
         path: PathBuf,
         /// What is wrong (which field, what was expected, what was found).
+        reason: String,
+    },
+    /// A schedule file's budgets or factors do not fit this build.
+    #[error("learned schedules {path}: {reason}")]
+    Schedule {
+        /// The file (or `<embedded>`).
+        path: PathBuf,
+        /// What is wrong (which budget, what was found).
         reason: String,
     },
 }

@@ -10,8 +10,13 @@
 //! together, on training seeds 0–99, selected on 100–109 (`models/train/relax.py`). Its own
 //! cost is six multiply-adds and one exponential per point.
 //!
-//! [`register`] adds `learned-sor` (the shipped policy, `models/learned-sor.json`, built in;
-//! `path=` reads another).
+//! Under a fixed budget of passes the per-point factors give way to a learned schedule: one
+//! factor for each equal share of the provider's sweeps, fitted per budget
+//! ([`shipped_schedules`], `models/train/schedule.py`).
+//!
+//! [`register`] adds `learned-sor` (the shipped policy, `models/learned-sor.json`, and the
+//! shipped schedules, `models/learned-schedule.json`, built in; `path=` and `schedules=` read
+//! others).
 //!
 //! ```
 //! let mut registry = deepcontact_core::Registry::empty();
@@ -31,7 +36,11 @@
 mod error;
 mod policy;
 mod registry;
+mod schedule;
 
 pub use error::RelaxError;
 pub use policy::{FEATURES, FORMAT, PolicyFile, RelaxationPolicy};
 pub use registry::{LEARNED_BUDGET_OMEGA, LEARNED_PAIRS, learned_sor, register};
+pub use schedule::{
+    SCHEDULE_FORMAT, ScheduleFile, schedules_from_file, schedules_from_json, shipped_schedules,
+};

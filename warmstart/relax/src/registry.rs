@@ -3,9 +3,9 @@
 use std::path::Path;
 
 use deepcontact_core::registry::{ProviderInfo, Registry, SpecError};
-use deepcontact_warmstart::{RelaxedConfig, RelaxedWarmStart};
+use deepcontact_warmstart::{BudgetSchedules, RelaxedConfig, RelaxedWarmStart};
 
-use crate::{RelaxError, RelaxationPolicy};
+use crate::{RelaxError, RelaxationPolicy, schedules_from_file, shipped_schedules};
 
 /// `sor` with `policy`'s per-point factors, named `name`, under `config` (its `omega` is not
 /// used).
@@ -30,8 +30,10 @@ pub const LEARNED_BUDGET_OMEGA: f64 = 1.5;
 
 /// Registers `learned-sor`: the shipped policy, or `path=policy.json`; `name=` renames it,
 /// `sweeps=` (300) and `tolerance=` (1e-4) bound its sweeps as `sor`'s; `pairs=`
-/// ([`LEARNED_PAIRS`]) relaxes two-point manifolds and `budget_omega=` ([`LEARNED_BUDGET_OMEGA`])
-/// caps the factors under a pass budget; `max_points=` leaves larger islands unswept.
+/// ([`LEARNED_PAIRS`]) relaxes two-point manifolds; under a pass budget the sweeps follow the
+/// learned schedule of that budget (`schedules=shipped`, [`shipped_schedules`]; or a file's,
+/// `schedules=PATH`; or, with `schedules=none`, the policy's factors capped at `budget_omega=`,
+/// [`LEARNED_BUDGET_OMEGA`]); `max_points=` leaves larger islands unswept.
 pub fn register(registry: &mut Registry) {
     registry.register_provider(
         "learned-sor",
@@ -39,7 +41,9 @@ pub fn register(registry: &mut Registry) {
             "sor whose per-contact relaxation factor is picked by a learned policy (six features, fitted on seeds 0-99; \
              models/learned-sor.json); path=policy.json, name=learned-sor, sweeps=300, tolerance=1e-4, pairs=1.3 (two-point manifolds split into rows relaxed by it without a pass budget; \
              1 keeps them blocks), \
-             budget_omega=1.5 (largest factor under a pass budget), max_points=none (larger islands get the carried impulses unswept)",
+             schedules=shipped (under a pass budget, a learned factor per share of the sweeps, fitted per budget; models/learned-schedule.json; \
+             a path reads another file, none keeps the policy's factors capped by budget_omega), \
+             budget_omega=1.5 (largest policy factor under a pass budget with schedules=none), max_points=none (larger islands get the carried impulses unswept)",
         )
         .learned(),
         |p, _| {
@@ -64,7 +68,15 @@ pub fn register(registry: &mut Registry) {
                     .unwrap_or(usize::MAX),
                 ..d
             };
-            Ok(Box::new(learned_sor(name, policy, config)?))
+            let schedules = match p.string("schedules") {
+                None | Some("shipped") => shipped_schedules(),
+                Some("none") => Ok(BudgetSchedules::default()),
+                Some(path) => schedules_from_file(Path::new(path)),
+            }
+            .map_err(build)?;
+            Ok(Box::new(
+                learned_sor(name, policy, config)?.with_budget_schedules(schedules),
+            ))
         },
     );
 }
