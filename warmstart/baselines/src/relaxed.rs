@@ -272,7 +272,13 @@ impl RelaxedWarmStart {
         cap: Option<u32>,
     ) -> Result<(u32, Option<Real>, Option<Real>), WarmStartError> {
         let (mut sweeps, mut first, mut last) = (0, None, None);
-        for (omega, share) in schedule.shares(cap.unwrap_or(self.config.sweeps)) {
+        for (j, (omega, share)) in schedule
+            .shares(cap.unwrap_or(self.config.sweeps))
+            .enumerate()
+        {
+            // The shares' copies differ only in their factors (all in [1, 2)): the first
+            // share's check of the copy holds for the others.
+            self.solver.settings.validate = j == 0;
             // A schedule's factors are its own: `budget_omega` caps `omega` and a policy's.
             let config = RelaxedConfig {
                 omega,
@@ -376,6 +382,8 @@ impl WarmStart for RelaxedWarmStart {
             .map(|b| b.saturating_sub(self.last_passes).max(1));
         let (sweeps, first, last) = if schedule.is_empty() {
             let omegas = self.relaxation.is_some().then_some(&self.omegas[..]);
+            // A schedule's later shares skip the check (`Self::scheduled`); this copy is new.
+            self.solver.settings.validate = true;
             relaxed_copy(
                 &mut self.relaxed,
                 problem,
