@@ -23,7 +23,10 @@
 //! The sweeps can refine another provider's start instead of the carried impulses
 //! ([`RelaxedWarmStart::with_start`], `sor:start=NAME`), and each point can get its own
 //! factor ω_i from a [`Relaxation`] policy ([`RelaxedWarmStart::with_relaxation`]; a learned
-//! one is deepcontact-relax's `learned-sor`).
+//! one is deepcontact-relax's `learned-sor`). A [`Schedule`] instead gives each equal share of
+//! the sweeps its own factor ([`RelaxedConfig::schedule`], or one per pass budget:
+//! [`RelaxedWarmStart::with_budget_schedules`]), a large one first and one near 1 last being
+//! what lowers the residual of a few sweeps (docs/RESEARCH.md).
 
 use deepcontact_core::{
     CarriedWarmStart, ContactProblem, Impulse, Observation, Real, SolveReport, SpecError,
