@@ -8,7 +8,8 @@ use deepcontact_warmstart::{BudgetSchedules, RelaxedConfig, RelaxedWarmStart};
 use crate::{RelaxError, RelaxationPolicy, schedules_from_file, shipped_schedules};
 
 /// `sor` with `policy`'s per-point factors, named `name`, under `config` (its `omega` is not
-/// used).
+/// used). The registry's `learned-sor` adds the learned schedules for pass budgets to it
+/// (`.with_budget_schedules(shipped_schedules()?)`, [`shipped_schedules`]).
 pub fn learned_sor(
     name: &str,
     policy: RelaxationPolicy,
