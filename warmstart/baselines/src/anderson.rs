@@ -33,6 +33,10 @@ pub struct AndersonConfig {
     /// Stop once the ∞-norm of a residual `G(λ) − λ` is below this (N·s; default 1e-4, the
     /// world's tolerance; ≥ 0).
     pub tolerance: Real,
+    /// Over-relaxation of the sweeps `G` (default 1: plain PGS; in (0, 2)): each single-point
+    /// manifold's effective masses scaled by it, as `sor` does; two-point manifolds, swept as
+    /// blocks, are left as they are.
+    pub omega: Real,
 }
 
 impl Default for AndersonConfig {
@@ -42,6 +46,7 @@ impl Default for AndersonConfig {
             sweeps: 4,
             rounds: 40,
             tolerance: 1e-4,
+            omega: 1.0,
         }
     }
 }
@@ -53,6 +58,8 @@ pub struct AndersonWarmStart {
     config: AndersonConfig,
     inner: InnerSolve,
     solver: PgsSolver,
+    /// The island with over-relaxed single-point rows (`omega` ≠ 1 only).
+    relaxed: ContactProblem,
     /// The current iterate λ_k and its image g_k (impulses).
     x: Vec<Impulse>,
     g: Vec<Impulse>,
@@ -86,12 +93,21 @@ impl AndersonWarmStart {
                 reason: "must be finite and >= 0".into(),
             });
         }
+        if !(config.omega > 0.0 && config.omega < 2.0) {
+            return Err(SpecError::InvalidParameter {
+                spec: "anderson".into(),
+                param: "omega".into(),
+                value: config.omega.to_string(),
+                reason: "must be in (0, 2)".into(),
+            });
+        }
         // Every evaluation of G runs all its sweeps (the mixing needs whole images).
         let inner = InnerSolve::new("anderson", "sweeps", config.sweeps, 1000, 0.0)?;
         Ok(Self {
             config,
             inner,
             solver: PgsSolver::new(),
+            relaxed: ContactProblem::default(),
             x: Vec::new(),
             g: Vec::new(),
             best: Vec::new(),
@@ -108,9 +124,14 @@ impl AndersonWarmStart {
     fn image(&mut self, problem: &ContactProblem, cap: u32) -> Result<(), WarmStartError> {
         self.g.clear();
         self.g.extend_from_slice(&self.x);
+        let swept = if self.config.omega == 1.0 {
+            problem
+        } else {
+            &self.relaxed
+        };
         self.inner.run(
             &mut self.solver,
-            problem,
+            swept,
             &mut self.g,
             "Anderson's sweeps",
             Some(cap),
@@ -207,6 +228,9 @@ impl WarmStart for AndersonWarmStart {
         // Under a budget the provider keeps one pass for the solver at least.
         let budget = ctx.pass_budget.map(|b| b.saturating_sub(1));
         let n = out.len();
+        if self.config.omega != 1.0 {
+            relax_single_points(&mut self.relaxed, problem, self.config.omega);
+        }
         self.x.clear();
         self.x.extend(
             out.iter()
@@ -270,5 +294,18 @@ impl WarmStart for AndersonWarmStart {
 
     fn diagnostics(&self) -> Vec<(String, Real)> {
         vec![("restarts".into(), self.restarts as Real)]
+    }
+}
+
+/// Fills `relaxed` with `problem`, each single-point manifold's effective masses scaled by
+/// `omega` (a sweep of that row then moves it `omega` times its Gauss-Seidel step).
+fn relax_single_points(relaxed: &mut ContactProblem, problem: &ContactProblem, omega: Real) {
+    relaxed.clone_from(problem);
+    for &(start, end) in &problem.manifolds {
+        if end == start + 1 {
+            let p = &mut relaxed.points[start as usize];
+            p.normal_mass *= omega;
+            p.tangent_mass *= omega;
+        }
     }
 }

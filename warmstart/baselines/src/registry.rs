@@ -109,7 +109,7 @@ fn register_accelerated(registry: &mut Registry) {
     registry.register_provider(
         "anderson",
         "builtin refined by Anderson-accelerated PGS sweeps; window=5, sweeps=4 (per map \
-         evaluation), rounds=40, tolerance=1e-4",
+         evaluation), rounds=40, tolerance=1e-4, omega=1 (over-relaxed single-point rows, in (0, 2))",
         |p, _| {
             let d = AndersonConfig::default();
             let config = AndersonConfig {
@@ -117,6 +117,7 @@ fn register_accelerated(registry: &mut Registry) {
                 sweeps: u32_param(p, "sweeps", d.sweeps)?,
                 rounds: u32_param(p, "rounds", d.rounds)?,
                 tolerance: p.f64("tolerance", d.tolerance)?,
+                omega: p.f64("omega", d.omega)?,
             };
             Ok(Box::new(AndersonWarmStart::new(config)?))
         },

@@ -793,9 +793,103 @@ fn anderson_loads_a_column_in_fewer_passes_than_pgs_from_the_carried_start() {
             tolerance: f64::NAN,
             ..AndersonConfig::default()
         },
+        AndersonConfig {
+            omega: 0.0,
+            ..AndersonConfig::default()
+        },
+        AndersonConfig {
+            omega: 2.0,
+            ..AndersonConfig::default()
+        },
     ] {
         assert!(AndersonWarmStart::new(config).is_err(), "{config:?}");
     }
+}
+
+#[test]
+fn anderson_omega_sweeps_the_single_point_rows_over_relaxed() {
+    // One evaluation of G (one sweep, one round): the start is that sweep's image, which with
+    // ω = 1.5 is one plain sweep of the island whose point rows carry 1.5 × their effective
+    // masses, and not one plain sweep of the island itself. The bodies slide at different
+    // speeds, so that the friction rows work too.
+    let (mut problem, _, carried) = short_of_load(12);
+    for (k, b) in problem.bodies.iter_mut().enumerate() {
+        if b.inv_mass > 0.0 {
+            b.linear_velocity.x = 0.02 * k as f64;
+        }
+    }
+    let carried_start: Vec<Impulse> = carried.iter().map(|c| c.unwrap()).collect();
+    let one_sweep = |omega: f64| {
+        let mut anderson = AndersonWarmStart::new(AndersonConfig {
+            sweeps: 1,
+            rounds: 1,
+            omega,
+            ..AndersonConfig::default()
+        })
+        .unwrap();
+        let start = start_of(&mut anderson, &problem, &carried, 1);
+        assert_eq!(anderson.passes_spent(), 1, "one sweep ran");
+        start
+    };
+    let mut relaxed = problem.clone();
+    assert!(
+        problem.manifolds.iter().all(|&(s, e)| e == s + 1),
+        "a column of single-point manifolds"
+    );
+    for p in &mut relaxed.points {
+        p.normal_mass *= 1.5;
+        p.tangent_mass *= 1.5;
+    }
+    let bits = |v: &[Impulse]| -> Vec<u64> {
+        v.iter()
+            .flat_map(|i| [i.normal.to_bits(), i.tangent.to_bits()])
+            .collect()
+    };
+    let over = one_sweep(1.5);
+    assert_eq!(bits(&over), bits(&pgs_sweeps(&relaxed, &carried_start, 1)));
+    assert_ne!(bits(&over), bits(&pgs_sweeps(&problem, &carried_start, 1)));
+    assert_eq!(
+        bits(&one_sweep(1.0)),
+        bits(&pgs_sweeps(&problem, &carried_start, 1))
+    );
+
+    // A box face (one two-point manifold, swept as a block) is left as it is.
+    let mut face = ContactProblem::new();
+    let ground = face.add_body(ProblemBody::fixed(Vector::new(0.0, -0.5)));
+    let body = face.add_body(ProblemBody::dynamic(
+        Vector::new(0.0, 0.5),
+        0.0,
+        Vector::new(0.01, -1.0),
+        0.0,
+        1.0,
+        1.0 / 6.0,
+    ));
+    face.begin_manifold();
+    for (k, x) in [-0.5, 0.5].into_iter().enumerate() {
+        let desc = PointDesc::new(ground, body, Vector::new(x, 0.0), Vector::new(0.0, 1.0))
+            .id(ContactId {
+                body_a: ground,
+                body_b: body,
+                feature_a: k as u64,
+                feature_b: 0,
+            })
+            .friction(0.5);
+        face.add_point(&desc).unwrap();
+    }
+    assert_eq!(face.manifolds, vec![(0, 2)], "one two-point manifold");
+    let none = vec![Some(Impulse::new(0.1, 0.0)); 2];
+    let mut anderson = AndersonWarmStart::new(AndersonConfig {
+        sweeps: 1,
+        rounds: 1,
+        omega: 1.5,
+        ..AndersonConfig::default()
+    })
+    .unwrap();
+    let start = start_of(&mut anderson, &face, &none, 1);
+    assert_eq!(
+        bits(&start),
+        bits(&pgs_sweeps(&face, &[Impulse::new(0.1, 0.0); 2], 1))
+    );
 }
 
 /// `coarse`'s start from `carried` after one round of one sweep, the correction and one sweep,
