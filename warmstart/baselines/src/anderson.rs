@@ -71,6 +71,8 @@ pub struct AndersonWarmStart {
     /// Normal equations of the least-squares problem (`m × m` and `m`).
     gram: Vec<Real>,
     rhs: Vec<Real>,
+    /// The residual differences `ΔF` of a mixing step, column after column (`m × 2n`).
+    columns: Vec<Real>,
     /// Passes of the last island.
     last_passes: u32,
     /// Restarts of the history (a residual grew), in all.
@@ -115,6 +117,7 @@ impl AndersonWarmStart {
             residuals: Vec::new(),
             gram: Vec::new(),
             rhs: Vec::new(),
+            columns: Vec::new(),
             last_passes: 0,
             restarts: 0,
         })
@@ -167,39 +170,47 @@ impl AndersonWarmStart {
         let n = 2 * self.x.len();
         let slots = self.config.window as usize + 1;
         let m = count - 1;
-        let slot = |j: usize| (newest + slots - j) % slots;
-        // ΔF column j = f_{newest−j} − f_{newest−j−1}, j = 0..m.
-        let diff = |v: &[Real], j: usize, i: usize| v[slot(j) * n + i] - v[slot(j + 1) * n + i];
+        // Where history entry j (0: the newest) starts, j = 0..=m.
+        let mut at = [0; AndersonWarmStart::MAX_WINDOW as usize + 1];
+        for (j, at) in at.iter_mut().enumerate().take(m + 1) {
+            *at = (newest + slots - j) % slots * n;
+        }
+        // ΔF column j = f_{newest−j} − f_{newest−j−1}, j = 0..m, one after another.
+        self.columns.clear();
+        for j in 0..m {
+            let (new, old) = (
+                &self.residuals[at[j]..at[j] + n],
+                &self.residuals[at[j + 1]..at[j + 1] + n],
+            );
+            self.columns
+                .extend(new.iter().zip(old).map(|(new, old)| new - old));
+        }
+        let column = |j: usize| &self.columns[j * n..(j + 1) * n];
+        let dot = |u: &[Real], v: &[Real]| u.iter().zip(v).fold(0.0, |acc, (u, v)| acc + u * v);
+        let f = &self.residuals[at[0]..at[0] + n];
         self.gram.clear();
         self.gram.resize(m * m, 0.0);
         self.rhs.clear();
-        self.rhs.resize(m, 0.0);
-        for i in 0..n {
-            let f = self.residuals[slot(0) * n + i];
-            for a in 0..m {
-                let da = diff(&self.residuals, a, i);
-                self.rhs[a] += da * f;
-                for b in a..m {
-                    self.gram[a * m + b] += da * diff(&self.residuals, b, i);
-                }
-            }
-        }
         for a in 0..m {
-            for b in 0..a {
-                self.gram[a * m + b] = self.gram[b * m + a];
+            self.rhs.push(dot(column(a), f));
+            for b in a..m {
+                let g = dot(column(a), column(b));
+                self.gram[a * m + b] = g;
+                self.gram[b * m + a] = g;
             }
         }
         // The differences are nearly parallel once the iterates settle: a light ridge.
         if !crate::spd::solve_spd(&mut self.gram, &mut self.rhs, m, 1e-10, 1e-14) {
             return false;
         }
+        let images = &self.images;
         for (i, (x, p)) in self.x.iter_mut().zip(&problem.points).enumerate() {
             let mut v = [0.0; 2];
             for (c, value) in v.iter_mut().enumerate() {
                 let r = 2 * i + c;
-                *value = self.images[slot(0) * n + r];
-                for a in 0..m {
-                    *value -= self.rhs[a] * diff(&self.images, a, r);
+                *value = images[at[0] + r];
+                for (a, gamma) in self.rhs.iter().enumerate() {
+                    *value -= gamma * (images[at[a] + r] - images[at[a + 1] + r]);
                 }
             }
             *x = in_cone(v[0], v[1], p.friction);
