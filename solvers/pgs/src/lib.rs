@@ -72,6 +72,10 @@ pub enum PgsError {
         /// Iteration (1-based).
         iteration: u32,
     },
+    /// [`PgsSolver::solve_again`] was asked for an island other than the one its plan was
+    /// built for (or before any solve).
+    #[error("solve_again: the solver's plan is not of this island; solve it first")]
+    NotPlanned,
 }
 
 impl From<PgsError> for deepcontact_core::CoreError {

@@ -23,6 +23,7 @@ use deepcontact_core::{
 
 use crate::PgsError;
 
+mod again;
 #[cfg(target_arch = "x86_64")]
 mod avx2;
 mod chunked;
@@ -224,6 +225,9 @@ pub struct PgsSolver {
     pub(crate) threads_used: usize,
     /// The single-precision copy of the island ([`Precision::F32`]).
     single: single::Single,
+    /// The bodies of the island the plan held was built for ([`Self::solve_again`]; `None`
+    /// when the buffers hold something else, e.g. small islands laid out side by side).
+    planned_bodies: Option<usize>,
 }
 
 impl PgsSolver {
@@ -253,6 +257,7 @@ impl PgsSolver {
     /// Stage 1, prepare: copy the problem into rows, manifolds and packed velocities.
     fn prepare(&mut self, problem: &ContactProblem, start: &[Impulse]) {
         self.reset_plan();
+        self.planned_bodies = Some(problem.bodies.len());
         // The chunked plan's grid (none for the plain sweep: not a pass over the points more).
         let z = self
             .plans_chunked(problem.points.len())

@@ -124,7 +124,13 @@ impl AndersonWarmStart {
     }
 
     /// `g = G(x)`: the sweeps from `x`; their count is added to the passes.
-    fn image(&mut self, problem: &ContactProblem, cap: u32) -> Result<(), WarmStartError> {
+    /// The island's first image builds the solver's plan; the others sweep on it.
+    fn image(
+        &mut self,
+        problem: &ContactProblem,
+        cap: u32,
+        first: bool,
+    ) -> Result<(), WarmStartError> {
         self.g.clear();
         self.g.extend_from_slice(&self.x);
         let swept = if self.config.omega == 1.0 {
@@ -132,13 +138,14 @@ impl AndersonWarmStart {
         } else {
             &self.relaxed
         };
-        self.inner.run(
-            &mut self.solver,
-            swept,
-            &mut self.g,
-            "Anderson's sweeps",
-            Some(cap),
-        )?;
+        let what = "Anderson's sweeps";
+        if first {
+            self.inner
+                .run(&mut self.solver, swept, &mut self.g, what, Some(cap))?;
+        } else {
+            self.inner
+                .run_again(&mut self.solver, swept, &mut self.g, what, Some(cap))?;
+        }
         self.last_passes += self.inner.passes();
         Ok(())
     }
@@ -261,7 +268,7 @@ impl WarmStart for AndersonWarmStart {
                 Some(b) => sweeps.min(b - self.last_passes),
                 None => sweeps,
             };
-            self.image(problem, cap)?;
+            self.image(problem, cap, self.last_passes == 0)?;
             let slot = if count == 0 {
                 0
             } else {

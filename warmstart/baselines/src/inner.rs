@@ -5,6 +5,7 @@ use deepcontact_core::{
     ContactProblem, Impulse, Real, SolveReport, SolverSettings, SpecError, Velocity,
     VelocitySolver, WarmStartError,
 };
+use deepcontact_pgs::PgsSolver;
 
 /// `value`, `spec`'s parameter `param`, if it lies in `range`; else the error naming the range.
 pub(crate) fn in_range(
@@ -87,12 +88,7 @@ impl InnerSolve {
         self.velocities
             .resize(problem.bodies.len(), Velocity::default());
         self.report.clear();
-        let settings = SolverSettings {
-            max_iterations: cap.map_or(self.settings.max_iterations, |c| {
-                self.settings.max_iterations.min(c.max(1))
-            }),
-            ..self.settings
-        };
+        let settings = self.capped(cap);
         solver
             .solve(
                 problem,
@@ -102,6 +98,43 @@ impl InnerSolve {
                 &mut self.report,
             )
             .map_err(|e| WarmStartError::Provider(format!("{what} failed: {e}")))
+    }
+
+    /// [`Self::run`] on the plan `solver`'s last solve built for `problem`
+    /// ([`PgsSolver::solve_again`]: the same bits without the plan's set-up).
+    pub(crate) fn run_again(
+        &mut self,
+        solver: &mut PgsSolver,
+        problem: &ContactProblem,
+        impulses: &mut [Impulse],
+        what: &str,
+        cap: Option<u32>,
+    ) -> Result<(), WarmStartError> {
+        self.velocities.clear();
+        self.velocities
+            .resize(problem.bodies.len(), Velocity::default());
+        self.report.clear();
+        let settings = self.capped(cap);
+        solver
+            .solve_again(
+                problem,
+                &settings,
+                impulses,
+                &mut self.velocities,
+                &mut self.report,
+            )
+            .map_err(|e| WarmStartError::Provider(format!("{what} failed: {e}")))
+    }
+
+    /// The inner settings with at most `cap` iterations when a budget caps them (below the
+    /// own cap it wins).
+    fn capped(&self, cap: Option<u32>) -> SolverSettings {
+        SolverSettings {
+            max_iterations: cap.map_or(self.settings.max_iterations, |c| {
+                self.settings.max_iterations.min(c.max(1))
+            }),
+            ..self.settings
+        }
     }
 
     /// Forgets the last solve's report (an island with nothing to solve).

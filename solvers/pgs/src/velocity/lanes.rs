@@ -187,6 +187,7 @@ impl PgsSolver {
     /// Returns where the second half's batches and velocities start, and each member's offset
     /// into its half's velocities.
     fn lay_out(&mut self, solvers: &[PgsSolver], pack: &Pack) -> ((usize, usize), [usize; PACK]) {
+        self.planned_bodies = None;
         self.batches.clear();
         self.vel.clear();
         let mut offsets = [0; PACK];

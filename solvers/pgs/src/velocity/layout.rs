@@ -28,17 +28,7 @@ impl Row {
     #[inline]
     pub(super) fn of(p: &deepcontact_core::ContactPoint, s: &Impulse, raw: bool) -> Self {
         let t = p.tangent();
-        let start_normal = if s.normal < 0.0 { 0.0 } else { s.normal };
-        let bound = p.friction * start_normal;
-        let start_tangent = if raw {
-            s.tangent
-        } else if s.tangent > bound {
-            bound
-        } else if s.tangent < -bound {
-            -bound
-        } else {
-            s.tangent
-        };
+        let (start_normal, start_tangent) = Self::start(s, p.friction, raw);
         Row {
             nx: p.normal.x,
             ny: p.normal.y,
@@ -53,6 +43,23 @@ impl Row {
             ln: start_normal,
             lt: start_tangent,
         }
+    }
+
+    /// The start `s` as a row holds it: the normal impulse clamped at 0, the tangent one
+    /// into the cone of `friction` (left as given when `raw`).
+    pub(super) fn start(s: &Impulse, friction: Real, raw: bool) -> (Real, Real) {
+        let normal = if s.normal < 0.0 { 0.0 } else { s.normal };
+        let bound = friction * normal;
+        let tangent = if raw {
+            s.tangent
+        } else if s.tangent > bound {
+            bound
+        } else if s.tangent < -bound {
+            -bound
+        } else {
+            s.tangent
+        };
+        (normal, tangent)
     }
 }
 
