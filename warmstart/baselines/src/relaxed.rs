@@ -279,9 +279,6 @@ impl RelaxedWarmStart {
             .shares(cap.unwrap_or(self.config.sweeps))
             .enumerate()
         {
-            // The shares' copies differ only in their factors (all in [1, 2)): the first
-            // share's check of the copy holds for the others.
-            self.solver.settings.validate = j == 0;
             // A schedule's factors are its own: `budget_omega` caps `omega` and a policy's.
             let config = RelaxedConfig {
                 omega,
@@ -289,13 +286,17 @@ impl RelaxedWarmStart {
                 ..self.config
             };
             relaxed_copy(&mut self.relaxed, problem, &config, None, cap.is_some());
-            self.inner.run(
-                &mut self.solver,
-                &self.relaxed,
-                out,
-                "over-relaxed sweeps",
-                Some(share),
-            )?;
+            // The first share checks the copy and builds the solver's plan; the others sweep on
+            // it with their own factors (all in [1, 2): the copies differ only in their rows'
+            // effective masses, `PgsSolver::solve_again`).
+            let what = "over-relaxed sweeps";
+            if j == 0 {
+                self.inner
+                    .run(&mut self.solver, &self.relaxed, out, what, Some(share))?;
+            } else {
+                self.inner
+                    .run_again(&mut self.solver, &self.relaxed, out, what, Some(share))?;
+            }
             let r = self.inner.report();
             sweeps += r.iterations;
             first = first.or(r.residual_inf.first().copied());
@@ -385,8 +386,6 @@ impl WarmStart for RelaxedWarmStart {
             .map(|b| b.saturating_sub(self.last_passes).max(1));
         let (sweeps, first, last) = if schedule.is_empty() {
             let omegas = self.relaxation.is_some().then_some(&self.omegas[..]);
-            // A schedule's later shares skip the check (`Self::scheduled`); this copy is new.
-            self.solver.settings.validate = true;
             relaxed_copy(
                 &mut self.relaxed,
                 problem,
