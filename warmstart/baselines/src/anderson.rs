@@ -236,15 +236,39 @@ impl WarmStart for AndersonWarmStart {
         ctx: &WarmStartContext<'_>,
         out: &mut [Impulse],
     ) -> Result<(), WarmStartError> {
-        self.last_passes = 0;
         CarriedWarmStart.warm_start(ctx, out)?;
+        // Under a budget the provider keeps one pass for the solver at least.
+        self.refine(
+            ctx.problem,
+            ctx.pass_budget.map(|b| b.saturating_sub(1)),
+            out,
+        )
+    }
+
+    fn passes_spent(&self) -> u32 {
+        self.last_passes
+    }
+
+    fn diagnostics(&self) -> Vec<(String, Real)> {
+        vec![("restarts".into(), self.restarts as Real)]
+    }
+}
+
+impl AndersonWarmStart {
+    /// The mixed sweeps from the start in `out` (in place), at most `budget` sweeps when
+    /// given; their count is [`WarmStart::passes_spent`]. The start is projected onto the
+    /// friction cones first; `out` is left as it is when no sweep ran.
+    pub(crate) fn refine(
+        &mut self,
+        problem: &ContactProblem,
+        budget: Option<u32>,
+        out: &mut [Impulse],
+    ) -> Result<(), WarmStartError> {
+        self.last_passes = 0;
         if out.is_empty() {
             return Ok(());
         }
-        let problem = ctx.problem;
         let (sweeps, window) = (self.config.sweeps, self.config.window as usize);
-        // Under a budget the provider keeps one pass for the solver at least.
-        let budget = ctx.pass_budget.map(|b| b.saturating_sub(1));
         let n = out.len();
         if self.config.omega != 1.0 {
             relax_single_points(&mut self.relaxed, problem, self.config.omega);
@@ -304,14 +328,6 @@ impl WarmStart for AndersonWarmStart {
             out.copy_from_slice(&self.best);
         }
         Ok(())
-    }
-
-    fn passes_spent(&self) -> u32 {
-        self.last_passes
-    }
-
-    fn diagnostics(&self) -> Vec<(String, Real)> {
-        vec![("restarts".into(), self.restarts as Real)]
     }
 }
 

@@ -62,7 +62,7 @@ pub use oracle::{OracleConfig, OracleOrder, OracleWarmStart};
 pub use presolve::{PresolveConfig, PresolveWarmStart};
 pub use random::{RandomConfig, RandomWarmStart};
 pub use registry::register;
-pub use relaxed::{Relaxation, RelaxedConfig, RelaxedWarmStart};
+pub use relaxed::{MIX_MIN_PASSES, Relaxation, RelaxedConfig, RelaxedWarmStart};
 pub use rounded::Rounded;
 pub use schedule::{BudgetSchedules, Schedule};
 pub use shock::ShockWarmStart;

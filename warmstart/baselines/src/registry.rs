@@ -147,7 +147,9 @@ fn register_sor(registry: &mut Registry) {
         "carried impulses refined by over-relaxed Gauss-Seidel sweeps (PGS on effective masses scaled by omega); \
          omega=1.7, sweeps=300, tolerance=1e-4 (tuned on seeds 100–109), pairs=1 (two-point manifolds' factor; above 1 they are split into over-relaxed point rows), budget_omega=2 \
          (largest factor under a pass budget), max_points=none (larger islands get the start unswept), schedule=none (factors for equal shares of the \
-         sweeps, e.g. 1.8/1.2), start=builtin (a registered provider's name: the start the sweeps refine)",
+         sweeps, e.g. 1.8/1.2), start=builtin (a registered provider's name: the start the sweeps refine), mix_below=0 (under a pass budget, \
+         islands with fewer than this share of their points in single-point manifolds get Anderson-mixed single sweeps instead), \
+         mix_mass_ratio=10 (no mixing where two movable bodies' masses differ more)",
         |p, r| {
             let d = RelaxedConfig::default();
             let config = RelaxedConfig {
@@ -162,6 +164,8 @@ fn register_sor(registry: &mut Registry) {
                     Some(text) => Schedule::parse("sor", text)?,
                     None => d.schedule,
                 },
+                mix_below: p.f64("mix_below", d.mix_below)?,
+                mix_mass_ratio: p.f64("mix_mass_ratio", d.mix_mass_ratio)?,
             };
             let provider = RelaxedWarmStart::new(config)?;
             Ok(Box::new(match p.string("start") {

@@ -35,7 +35,12 @@ use deepcontact_core::{
 use deepcontact_pgs::PgsSolver;
 
 use crate::inner::InnerSolve;
-use crate::{BudgetSchedules, Schedule};
+use crate::{AndersonConfig, AndersonWarmStart, BudgetSchedules, Schedule};
+
+/// The fewest passes an island's share of the budget must hold for the mixed sweeps of
+/// [`RelaxedConfig::mix_below`]: with one kept for the solver, three map evaluations, the least
+/// that lets a mixed step be evaluated. Below it the relaxed sweeps run.
+pub const MIX_MIN_PASSES: u32 = 4;
 
 /// Parameters of [`RelaxedWarmStart`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -66,8 +71,21 @@ pub struct RelaxedConfig {
     /// or the policy's per-point factors, for every sweep). With a schedule every single-point
     /// manifold takes factor `j` in share `j` of the sweeps' cap (the budget's share, else
     /// `sweeps`), as given (`budget_omega` does not cap it); the sweeps stop at the tolerance
-    /// as before. Each share rebuilds the relaxed copy and the solver's plan.
+    /// as before. Each share rebuilds the relaxed copy; the later shares sweep on the solver
+    /// plan of the first.
     pub schedule: Schedule,
+    /// Under a pass budget, an island whose single-point manifolds (the rows relaxation
+    /// reaches) hold fewer than this share of its contact points, and whose movable bodies'
+    /// masses lie within [`mix_mass_ratio`](Self::mix_mass_ratio) of each other, is refined
+    /// by Anderson-mixed single sweeps (window 3, `anderson:sweeps=1,window=3`) instead of the
+    /// relaxed sweeps, when its share of the budget holds [`MIX_MIN_PASSES`] passes or more
+    /// (default 0: never; in [0, 1]). Towers of boxes hold almost no such
+    /// points (under a tenth), box piles a fifth or more (docs/RESEARCH.md).
+    pub mix_below: Real,
+    /// The largest ratio of two movable bodies' masses in an island that is mixed (default
+    /// 10; ≥ 1): under a box 100 times heavier than those it rests on the first mixed steps
+    /// overshoot and a short budget does not bring them back.
+    pub mix_mass_ratio: Real,
 }
 
 impl Default for RelaxedConfig {
@@ -80,6 +98,8 @@ impl Default for RelaxedConfig {
             budget_omega: 2.0,
             max_points: usize::MAX,
             schedule: Schedule::NONE,
+            mix_below: 0.0,
+            mix_mass_ratio: 10.0,
         }
     }
 }
@@ -158,6 +178,10 @@ pub struct RelaxedWarmStart {
     last_passes: u32,
     /// Schedules that replace [`RelaxedConfig::schedule`] under a pass budget.
     budget_schedules: BudgetSchedules,
+    /// The mixed sweeps of [`RelaxedConfig::mix_below`] (`None` when it is 0).
+    mixing: Option<AndersonWarmStart>,
+    /// Islands refined by the mixed sweeps.
+    mixed: u64,
 }
 
 impl RelaxedWarmStart {
@@ -185,6 +209,22 @@ impl RelaxedWarmStart {
                 });
             }
         }
+        if !(0.0..=1.0).contains(&config.mix_below) {
+            return Err(SpecError::InvalidParameter {
+                spec: "sor".into(),
+                param: "mix_below".into(),
+                value: config.mix_below.to_string(),
+                reason: "must be in [0, 1]".into(),
+            });
+        }
+        if config.mix_mass_ratio.is_nan() || config.mix_mass_ratio < 1.0 {
+            return Err(SpecError::InvalidParameter {
+                spec: "sor".into(),
+                param: "mix_mass_ratio".into(),
+                value: config.mix_mass_ratio.to_string(),
+                reason: "must be at least 1".into(),
+            });
+        }
         let inner = InnerSolve::new(
             "sor",
             "sweeps",
@@ -192,6 +232,15 @@ impl RelaxedWarmStart {
             Self::MAX_SWEEPS,
             config.tolerance,
         )?;
+        let mixing = (config.mix_below > 0.0)
+            .then(|| {
+                AndersonWarmStart::new(AndersonConfig {
+                    sweeps: 1,
+                    window: 3,
+                    ..AndersonConfig::default()
+                })
+            })
+            .transpose()?;
         Ok(Self {
             config,
             name: "sor".into(),
@@ -211,7 +260,58 @@ impl RelaxedWarmStart {
             gated: 0,
             last_passes: 0,
             budget_schedules: BudgetSchedules::default(),
+            mixing,
+            mixed: 0,
         })
+    }
+
+    /// Whether [`RelaxedConfig::mix_below`] sends `problem` to the mixed sweeps.
+    fn mixes(&self, problem: &ContactProblem) -> bool {
+        let single = problem
+            .manifolds
+            .iter()
+            .filter(|&&(start, end)| end == start + 1)
+            .count();
+        if single as Real >= self.config.mix_below * problem.len() as Real {
+            return false;
+        }
+        let (lightest, heaviest) = problem
+            .bodies
+            .iter()
+            .filter(|b| b.inv_mass > 0.0)
+            .fold((Real::INFINITY, 0.0), |(lo, hi): (Real, Real), b| {
+                (lo.min(b.inv_mass), hi.max(b.inv_mass))
+            });
+        // Inverse masses: the heaviest body has the smallest.
+        heaviest <= self.config.mix_mass_ratio * lightest
+    }
+
+    /// The mixed sweeps from the start in `out` within `cap` passes (one kept for the solver,
+    /// as `anderson` keeps it), counted as the relaxed sweeps are; a non-finite result is
+    /// dropped for the start.
+    fn mix(
+        &mut self,
+        step: u64,
+        problem: &ContactProblem,
+        cap: u32,
+        out: &mut [Impulse],
+    ) -> Result<(), WarmStartError> {
+        let Some(mixing) = self.mixing.as_mut() else {
+            return Ok(());
+        };
+        mixing.refine(problem, Some(cap.saturating_sub(1)), out)?;
+        let sweeps = mixing.passes_spent();
+        self.last_passes += sweeps;
+        self.mixed += 1;
+        self.count(step, sweeps);
+        if out
+            .iter()
+            .any(|i| !(i.normal.is_finite() && i.tangent.is_finite()))
+        {
+            self.dropped += 1;
+            out.copy_from_slice(&self.first);
+        }
+        Ok(())
     }
 
     /// The same provider refining `start`'s impulses instead of the carried ones (any
@@ -384,6 +484,13 @@ impl WarmStart for RelaxedWarmStart {
         let cap = ctx
             .pass_budget
             .map(|b| b.saturating_sub(self.last_passes).max(1));
+        let mixable = |&cap: &u32| cap >= MIX_MIN_PASSES;
+        if let Some(cap) = cap
+            .filter(mixable)
+            .filter(|_| self.mixing.is_some() && self.mixes(problem))
+        {
+            return self.mix(ctx.step, problem, cap, out);
+        }
         let (sweeps, first, last) = if schedule.is_empty() {
             let omegas = self.relaxation.is_some().then_some(&self.omegas[..]);
             relaxed_copy(
@@ -438,7 +545,7 @@ impl WarmStart for RelaxedWarmStart {
 
     fn reset(&mut self) {
         (self.sweeps, self.islands, self.step_max_sum, self.steps) = (0, 0, 0, 0);
-        (self.dropped, self.gated) = (0, 0);
+        (self.dropped, self.gated, self.mixed) = (0, 0, 0);
         self.current = None;
         if let Some(start) = &mut self.start {
             start.reset();
@@ -449,7 +556,8 @@ impl WarmStart for RelaxedWarmStart {
     /// largest island count of a step — the provider's sweeps beside the world's iterations,
     /// which the comparison counts on a step's slowest island, so that the total work of a
     /// step is both), `dropped` (islands whose diverging sweeps were replaced by the
-    /// carried impulses) and `gated` (islands above [`RelaxedConfig::max_points`], not swept);
+    /// carried impulses), `gated` (islands above [`RelaxedConfig::max_points`], not swept) and
+    /// `mixed` (islands refined by the mixed sweeps of [`RelaxedConfig::mix_below`]);
     /// then the start's own, each name prefixed `start_`.
     fn diagnostics(&self) -> Vec<(String, Real)> {
         let (mut sum, mut steps) = (self.step_max_sum, self.steps);
@@ -463,6 +571,7 @@ impl WarmStart for RelaxedWarmStart {
             ("mean_sweeps_slowest_island".into(), mean(sum, steps)),
             ("dropped".into(), self.dropped as Real),
             ("gated".into(), self.gated as Real),
+            ("mixed".into(), self.mixed as Real),
         ];
         let start = self.start.iter().flat_map(|s| s.diagnostics());
         own.into_iter()

@@ -10,8 +10,9 @@ use deepcontact_core::{
 use deepcontact_pgs::PgsSolver;
 use deepcontact_warmstart::{
     AndersonConfig, AndersonWarmStart, BestOfWarmStart, CoarseConfig, CoarseWarmStart,
-    ExtrapolatedWarmStart, KrylovConfig, KrylovWarmStart, PresolveConfig, PresolveWarmStart,
-    RelaxedConfig, RelaxedWarmStart, Schedule, ShockWarmStart, TailConfig, TailWarmStart,
+    ExtrapolatedWarmStart, KrylovConfig, KrylovWarmStart, MIX_MIN_PASSES, PresolveConfig,
+    PresolveWarmStart, RelaxedConfig, RelaxedWarmStart, Schedule, ShockWarmStart, TailConfig,
+    TailWarmStart,
 };
 
 const DT: f64 = 0.01;
@@ -468,6 +469,7 @@ fn over_relaxed_sweeps_cut_the_world_iterations_and_the_total() {
         budget_omega: 2.0,
         max_points: usize::MAX,
         schedule: Schedule::NONE,
+        ..RelaxedConfig::default()
     };
     let start = start_of(
         &mut RelaxedWarmStart::new(plain).unwrap(),
@@ -497,6 +499,7 @@ fn over_relaxed_sweeps_cut_the_world_iterations_and_the_total() {
             budget_omega: 2.0,
             max_points: usize::MAX,
             schedule: Schedule::NONE,
+            ..RelaxedConfig::default()
         };
         assert!(RelaxedWarmStart::new(config).is_err(), "{config:?}");
     }
@@ -541,6 +544,7 @@ fn sor_refines_the_start_of_another_provider() {
         budget_omega: 2.0,
         max_points: usize::MAX,
         schedule: Schedule::NONE,
+        ..RelaxedConfig::default()
     };
     let mut from_zeros = RelaxedWarmStart::new(plain)
         .unwrap()
@@ -654,6 +658,147 @@ fn sor_budget_omega_caps_the_factors_under_a_budget_only() {
     assert_eq!(run(1.7, 1.0, Some(8)), run(1.0, 2.0, Some(8)));
     assert_ne!(run(1.7, 2.0, Some(8)), run(1.0, 2.0, Some(8)));
     assert_eq!(run(1.7, 1.0, None), run(1.7, 2.0, None));
+}
+
+/// Under a pass budget `mix_below` hands the towers' islands (boxes on boxes: no single-point
+/// rows) to Anderson-mixed single sweeps, the bits of `anderson:sweeps=1,window=3`; the
+/// island of a tower under a box 100 times heavier than the rest (`mix_mass_ratio`) and the
+/// tolerance mode keep the relaxed sweeps, bit for bit.
+#[test]
+fn sor_mix_below_mixes_the_towers_under_a_budget_and_spares_the_heavy_box() {
+    use deepcontact_core::{WorldSettings, scene};
+    use deepcontact_pgs::PgsPositionSolver;
+    let tower = |heavy: bool| {
+        let params = scene::StackParams {
+            count: if heavy { 5 } else { 10 },
+            ratio: 100.0,
+            jitter: 0.01,
+            ..scene::StackParams::default()
+        };
+        if heavy {
+            scene::ratio_stack(100, &params).unwrap()
+        } else {
+            scene::stack_with(100, &params).unwrap()
+        }
+    };
+    let run = |provider: &mut dyn WarmStart, heavy: bool, budget: Option<u32>| -> Vec<u64> {
+        let settings = WorldSettings {
+            budget,
+            ..WorldSettings::default()
+        };
+        let mut world = tower(heavy).build(settings).unwrap();
+        let (mut solver, mut position) = (PgsSolver::new(), PgsPositionSolver::new());
+        let mut contact_steps = 0;
+        let bits = (0..60)
+            .map(|_| {
+                let r = world.step(provider, &mut solver, &mut position).unwrap();
+                contact_steps += usize::from(r.contacts > 0);
+                r.natural_residual.to_bits()
+            })
+            .collect();
+        assert!(contact_steps > 30, "{contact_steps} steps with contacts");
+        bits
+    };
+    let sor = |mix_below: f64| {
+        RelaxedWarmStart::new(RelaxedConfig {
+            mix_below,
+            ..RelaxedConfig::default()
+        })
+        .unwrap()
+    };
+    let mixed = |provider: &RelaxedWarmStart| {
+        provider
+            .diagnostics()
+            .into_iter()
+            .find(|(name, _)| name == "mixed")
+            .map(|(_, v)| v)
+            .unwrap()
+    };
+    let mut mixing = sor(0.15);
+    assert_ne!(
+        run(&mut mixing, false, Some(8)),
+        run(&mut sor(0.0), false, Some(8))
+    );
+    assert!(mixed(&mixing) > 30.0, "{} islands mixed", mixed(&mixing));
+    // The resting towers' islands: every point in a box face. The even tower's start is
+    // Anderson's; under the heavy box the island keeps the relaxed sweeps.
+    let resting = |heavy: bool| {
+        let mut world = tower(heavy)
+            .build(WorldSettings {
+                budget: Some(8),
+                ..WorldSettings::default()
+            })
+            .unwrap();
+        let (mut solver, mut position) = (PgsSolver::new(), PgsPositionSolver::new());
+        for _ in 0..60 {
+            world
+                .step(&mut CarriedWarmStart, &mut solver, &mut position)
+                .unwrap();
+        }
+        let island = world.last_problems()[0].clone();
+        assert!(
+            island.manifolds.iter().all(|&(a, b)| b == a + 2),
+            "box faces only"
+        );
+        island
+    };
+    let budgeted = |provider: &mut dyn WarmStart, island: &ContactProblem, passes: u32| {
+        let carried = vec![None; island.len()];
+        let ctx = WarmStartContext::new(island, &carried, 1, DT).with_pass_budget(passes);
+        let mut out = vec![Impulse::ZERO; island.len()];
+        provider.warm_start(&ctx, &mut out).unwrap();
+        let bits: Vec<u64> = out
+            .iter()
+            .flat_map(|i| [i.normal.to_bits(), i.tangent.to_bits()])
+            .collect();
+        (bits, provider.passes_spent())
+    };
+    let mut anderson = AndersonWarmStart::new(AndersonConfig {
+        sweeps: 1,
+        window: 3,
+        ..AndersonConfig::default()
+    })
+    .unwrap();
+    let even = resting(false);
+    let (ours, theirs) = (
+        budgeted(&mut sor(0.15), &even, 7),
+        budgeted(&mut anderson, &even, 7),
+    );
+    assert!(ours.1 > 1, "{} mixed sweeps", ours.1);
+    assert_eq!(ours, theirs);
+    // Three passes leave no room for a mixed step: the relaxed sweeps run.
+    let mut short = sor(0.15);
+    assert_eq!(
+        budgeted(&mut short, &even, MIX_MIN_PASSES - 1),
+        budgeted(&mut sor(0.0), &even, MIX_MIN_PASSES - 1)
+    );
+    assert_eq!(mixed(&short), 0.0);
+    let heavy = resting(true);
+    let mut spared = sor(0.15);
+    assert_eq!(
+        budgeted(&mut spared, &heavy, 7),
+        budgeted(&mut sor(0.0), &heavy, 7)
+    );
+    assert_eq!(mixed(&spared), 0.0);
+    // Without a budget nothing is mixed.
+    let mut unmixed = sor(0.15);
+    assert_eq!(
+        run(&mut unmixed, false, None),
+        run(&mut sor(0.0), false, None)
+    );
+    assert_eq!(mixed(&unmixed), 0.0);
+    for config in [
+        RelaxedConfig {
+            mix_below: 1.5,
+            ..RelaxedConfig::default()
+        },
+        RelaxedConfig {
+            mix_mass_ratio: 0.5,
+            ..RelaxedConfig::default()
+        },
+    ] {
+        assert!(RelaxedWarmStart::new(config).is_err(), "{config:?}");
+    }
 }
 
 /// A schedule's factors run in equal shares of the sweeps: one factor is the constant factor bit

@@ -12,7 +12,9 @@
 //!
 //! Under a fixed budget of passes the per-point factors give way to a learned schedule: one
 //! factor for each equal share of the provider's sweeps, fitted per budget
-//! ([`shipped_schedules`], `models/train/schedule.py`).
+//! ([`shipped_schedules`], `models/train/schedule.py`); islands that relaxation hardly reaches
+//! (towers of boxes, whose points lie in two-point manifolds solved as blocks) get
+//! Anderson-mixed single sweeps instead ([`LEARNED_MIX_BELOW`]).
 //!
 //! [`register`] adds `learned-sor` (the shipped policy, `models/learned-sor.json`, and the
 //! shipped schedules, `models/learned-schedule.json`, built in; `path=` and `schedules=` read
@@ -40,7 +42,7 @@ mod schedule;
 
 pub use error::RelaxError;
 pub use policy::{FEATURES, FORMAT, PolicyFile, RelaxationPolicy};
-pub use registry::{LEARNED_BUDGET_OMEGA, LEARNED_PAIRS, learned_sor, register};
+pub use registry::{LEARNED_BUDGET_OMEGA, LEARNED_MIX_BELOW, LEARNED_PAIRS, learned_sor, register};
 pub use schedule::{
     SCHEDULE_FORMAT, ScheduleFile, schedules_from_file, schedules_from_json, shipped_schedules,
 };

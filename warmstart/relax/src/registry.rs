@@ -29,12 +29,21 @@ pub const LEARNED_PAIRS: f64 = 1.3;
 /// a tolerance, where ω up to 1.95 on large islands pays; with a handful of sweeps it overshoots.
 pub const LEARNED_BUDGET_OMEGA: f64 = 1.5;
 
+/// `learned-sor`'s [`RelaxedConfig::mix_below`]: under a pass budget, islands with fewer than
+/// this share of their points in single-point manifolds (towers of boxes, under a tenth; box
+/// piles a fifth or more) get Anderson-mixed sweeps, since relaxation reaches few of their
+/// rows. Set between the two from the islands' shares on seeds 100–101; on the tuning and
+/// report seeds it lowers the towers' residual p99 at K = 8 and 16 (docs/RESEARCH.md).
+pub const LEARNED_MIX_BELOW: f64 = 0.15;
+
 /// Registers `learned-sor`: the shipped policy, or `path=policy.json`; `name=` renames it,
 /// `sweeps=` (300) and `tolerance=` (1e-4) bound its sweeps as `sor`'s; `pairs=`
 /// ([`LEARNED_PAIRS`]) relaxes two-point manifolds; under a pass budget the sweeps follow the
 /// learned schedule of that budget (`schedules=shipped`, [`shipped_schedules`]; or a file's,
 /// `schedules=PATH`; or, with `schedules=none`, the policy's factors capped at `budget_omega=`,
-/// [`LEARNED_BUDGET_OMEGA`]); `max_points=` leaves larger islands unswept.
+/// [`LEARNED_BUDGET_OMEGA`]); `max_points=` leaves larger islands unswept; `mix_below=`
+/// ([`LEARNED_MIX_BELOW`]) and `mix_mass_ratio=` (10) send towers of boxes under a budget to
+/// Anderson-mixed sweeps ([`RelaxedConfig::mix_below`]).
 pub fn register(registry: &mut Registry) {
     registry.register_provider(
         "learned-sor",
@@ -44,7 +53,9 @@ pub fn register(registry: &mut Registry) {
              1 keeps them blocks), \
              schedules=shipped (under a pass budget, a learned factor per share of the sweeps, fitted per budget; models/learned-schedule.json; \
              a path reads another file, none keeps the policy's factors capped by budget_omega), \
-             budget_omega=1.5 (largest policy factor under a pass budget with schedules=none), max_points=none (larger islands get the carried impulses unswept)",
+             budget_omega=1.5 (largest policy factor under a pass budget with schedules=none), max_points=none (larger islands get the carried impulses unswept), \
+             mix_below=0.15 (under a pass budget, islands with fewer than this share of their points in single-point manifolds, towers of boxes, get \
+             Anderson-mixed single sweeps instead; 0: never), mix_mass_ratio=10 (not where two movable bodies' masses differ more)",
         )
         .learned(),
         |p, _| {
@@ -67,6 +78,8 @@ pub fn register(registry: &mut Registry) {
                 budget_omega: p.f64("budget_omega", LEARNED_BUDGET_OMEGA)?,
                 max_points: usize::try_from(p.u64("max_points", d.max_points as u64)?)
                     .unwrap_or(usize::MAX),
+                mix_below: p.f64("mix_below", LEARNED_MIX_BELOW)?,
+                mix_mass_ratio: p.f64("mix_mass_ratio", d.mix_mass_ratio)?,
                 ..d
             };
             let schedules = match p.string("schedules") {
