@@ -2,7 +2,7 @@
 //! solver's stop rule (validated), its velocity buffer and its last report.
 
 use deepcontact_core::{
-    ContactProblem, Impulse, Real, SolveReport, SolverSettings, SpecError, Velocity,
+    ContactProblem, CoreError, Impulse, Real, SolveReport, SolverSettings, SpecError, Velocity,
     VelocitySolver, WarmStartError,
 };
 use deepcontact_pgs::PgsSolver;
@@ -84,20 +84,9 @@ impl InnerSolve {
         what: &str,
         cap: Option<u32>,
     ) -> Result<(), WarmStartError> {
-        self.velocities.clear();
-        self.velocities
-            .resize(problem.bodies.len(), Velocity::default());
-        self.report.clear();
-        let settings = self.capped(cap);
-        solver
-            .solve(
-                problem,
-                &settings,
-                impulses,
-                &mut self.velocities,
-                &mut self.report,
-            )
-            .map_err(|e| WarmStartError::Provider(format!("{what} failed: {e}")))
+        self.run_with(problem, what, cap, |settings, velocities, report| {
+            solver.solve(problem, settings, impulses, velocities, report)
+        })
     }
 
     /// [`Self::run`] on the plan `solver`'s last solve built for `problem`
@@ -110,19 +99,25 @@ impl InnerSolve {
         what: &str,
         cap: Option<u32>,
     ) -> Result<(), WarmStartError> {
+        self.run_with(problem, what, cap, |settings, velocities, report| {
+            solver.solve_again(problem, settings, impulses, velocities, report)
+        })
+    }
+
+    /// `solve` with the capped settings on the cleared velocity buffer and report.
+    fn run_with(
+        &mut self,
+        problem: &ContactProblem,
+        what: &str,
+        cap: Option<u32>,
+        solve: impl FnOnce(&SolverSettings, &mut [Velocity], &mut SolveReport) -> Result<(), CoreError>,
+    ) -> Result<(), WarmStartError> {
         self.velocities.clear();
         self.velocities
             .resize(problem.bodies.len(), Velocity::default());
         self.report.clear();
         let settings = self.capped(cap);
-        solver
-            .solve_again(
-                problem,
-                &settings,
-                impulses,
-                &mut self.velocities,
-                &mut self.report,
-            )
+        solve(&settings, &mut self.velocities, &mut self.report)
             .map_err(|e| WarmStartError::Provider(format!("{what} failed: {e}")))
     }
 
