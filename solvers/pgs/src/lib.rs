@@ -8,6 +8,9 @@
 //! Solver stages, in order: **prepare** (copy the problem into solver-friendly rows,
 //! buffers reused) → **warm start** (apply the start impulses) → **solve** (iterate until
 //! the stop rule holds) → **store impulses** (write them back, natural-map residual).
+//! [`PgsSolver::solve_again`] runs the last three on the prepared rows of the island solved
+//! last, from another start or with its rows' effective masses scaled (a provider's repeated
+//! sweeps of one island), to the bits of a fresh solve.
 //!
 //! **Threads.** An island of [`PgsSettings::parallel_min_points`] points or more (default
 //! 2048) is swept in the domain plan ([`PgsSettings::domains`], default 16;
