@@ -149,7 +149,8 @@ fn register_sor(registry: &mut Registry) {
          (largest factor under a pass budget), max_points=none (larger islands get the start unswept), schedule=none (factors for equal shares of the \
          sweeps, e.g. 1.8/1.2), start=builtin (a registered provider's name: the start the sweeps refine), mix_below=0 (under a pass budget, \
          islands with fewer than this share of their points in single-point manifolds get Anderson-mixed single sweeps instead), \
-         mix_mass_ratio=10 (no mixing where two movable bodies' masses differ more)",
+         heavy_ratio=10 (an island whose movable bodies' masses differ more is heavy: not mixed), heavy_alpha=0 (under a pass budget, \
+         a heavy island starts from its carried impulses continued along their last change by this weight)",
         |p, r| {
             let d = RelaxedConfig::default();
             let config = RelaxedConfig {
@@ -165,7 +166,8 @@ fn register_sor(registry: &mut Registry) {
                     None => d.schedule,
                 },
                 mix_below: p.f64("mix_below", d.mix_below)?,
-                mix_mass_ratio: p.f64("mix_mass_ratio", d.mix_mass_ratio)?,
+                heavy_ratio: p.f64("heavy_ratio", d.heavy_ratio)?,
+                heavy_alpha: p.f64("heavy_alpha", d.heavy_alpha)?,
             };
             let provider = RelaxedWarmStart::new(config)?;
             Ok(Box::new(match p.string("start") {

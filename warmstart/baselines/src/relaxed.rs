@@ -35,7 +35,7 @@ use deepcontact_core::{
 use deepcontact_pgs::PgsSolver;
 
 use crate::inner::InnerSolve;
-use crate::{AndersonConfig, AndersonWarmStart, BudgetSchedules, Schedule};
+use crate::{AndersonConfig, AndersonWarmStart, BudgetSchedules, ExtrapolatedWarmStart, Schedule};
 
 /// The fewest passes an island's share of the budget must hold for the mixed sweeps of
 /// [`RelaxedConfig::mix_below`]: with one kept for the solver, three map evaluations, the least
@@ -75,17 +75,25 @@ pub struct RelaxedConfig {
     /// plan of the first.
     pub schedule: Schedule,
     /// Under a pass budget, an island whose single-point manifolds (the rows relaxation
-    /// reaches) hold fewer than this share of its contact points, and whose movable bodies'
-    /// masses lie within [`mix_mass_ratio`](Self::mix_mass_ratio) of each other, is refined
+    /// reaches) hold fewer than this share of its contact points, and that is not heavy
+    /// ([`heavy_ratio`](Self::heavy_ratio)), is refined
     /// by Anderson-mixed single sweeps (window 3, `anderson:sweeps=1,window=3`) instead of the
     /// relaxed sweeps, when its share of the budget holds [`MIX_MIN_PASSES`] passes or more
     /// (default 0: never; in [0, 1]). Towers of boxes hold almost no such
     /// points (under a tenth), box piles a fifth or more (docs/RESEARCH.md).
     pub mix_below: Real,
-    /// The largest ratio of two movable bodies' masses in an island that is mixed (default
-    /// 10; ≥ 1): under a box 100 times heavier than those it rests on the first mixed steps
-    /// overshoot and a short budget does not bring them back.
-    pub mix_mass_ratio: Real,
+    /// An island is heavy when two of its movable bodies' masses differ more than this many
+    /// times (default 10; ≥ 1). A heavy island is not mixed: under a box 100 times heavier
+    /// than those it rests on the first mixed steps overshoot and a short budget does not bring
+    /// them back. Under a pass budget it starts from [`heavy_alpha`](Self::heavy_alpha)'s
+    /// extrapolation instead of the carried impulses.
+    pub heavy_ratio: Real,
+    /// Under a pass budget, a heavy island's start (when no other start is given,
+    /// [`RelaxedWarmStart::with_start`]) is its carried impulses continued along their last
+    /// change, `λ_t + α (λ_t − λ_{t−1})` by contact id (`extrapolate:alpha=α`), unswept: the
+    /// heavy body's load reaches the bodies under it over several steps, and the carried
+    /// impulses lag it (default 0: the carried impulses, swept; finite, ≥ 0).
+    pub heavy_alpha: Real,
 }
 
 impl Default for RelaxedConfig {
@@ -99,7 +107,8 @@ impl Default for RelaxedConfig {
             max_points: usize::MAX,
             schedule: Schedule::NONE,
             mix_below: 0.0,
-            mix_mass_ratio: 10.0,
+            heavy_ratio: 10.0,
+            heavy_alpha: 0.0,
         }
     }
 }
@@ -182,6 +191,10 @@ pub struct RelaxedWarmStart {
     mixing: Option<AndersonWarmStart>,
     /// Islands refined by the mixed sweeps.
     mixed: u64,
+    /// The heavy islands' start of [`RelaxedConfig::heavy_alpha`] (`None` when it is 0).
+    heavy: Option<ExtrapolatedWarmStart>,
+    /// Heavy islands started from the extrapolation.
+    extrapolated: u64,
 }
 
 impl RelaxedWarmStart {
@@ -217,11 +230,11 @@ impl RelaxedWarmStart {
                 reason: "must be in [0, 1]".into(),
             });
         }
-        if config.mix_mass_ratio.is_nan() || config.mix_mass_ratio < 1.0 {
+        if config.heavy_ratio.is_nan() || config.heavy_ratio < 1.0 {
             return Err(SpecError::InvalidParameter {
                 spec: "sor".into(),
-                param: "mix_mass_ratio".into(),
-                value: config.mix_mass_ratio.to_string(),
+                param: "heavy_ratio".into(),
+                value: config.heavy_ratio.to_string(),
                 reason: "must be at least 1".into(),
             });
         }
@@ -232,6 +245,17 @@ impl RelaxedWarmStart {
             Self::MAX_SWEEPS,
             config.tolerance,
         )?;
+        let heavy = (config.heavy_alpha != 0.0)
+            .then(|| ExtrapolatedWarmStart::new(config.heavy_alpha))
+            .transpose()?;
+        if config.heavy_alpha < 0.0 {
+            return Err(SpecError::InvalidParameter {
+                spec: "sor".into(),
+                param: "heavy_alpha".into(),
+                value: config.heavy_alpha.to_string(),
+                reason: "must be finite and >= 0".into(),
+            });
+        }
         let mixing = (config.mix_below > 0.0)
             .then(|| {
                 AndersonWarmStart::new(AndersonConfig {
@@ -262,7 +286,31 @@ impl RelaxedWarmStart {
             budget_schedules: BudgetSchedules::default(),
             mixing,
             mixed: 0,
+            heavy,
+            extrapolated: 0,
         })
+    }
+
+    /// Whether `problem` is heavy ([`RelaxedConfig::heavy_ratio`]): the largest of its movable
+    /// bodies' inverse masses over the smallest above the ratio.
+    fn heavy(&self, problem: &ContactProblem) -> bool {
+        let (smallest, largest) = problem
+            .bodies
+            .iter()
+            .filter(|b| b.inv_mass > 0.0)
+            .fold((Real::INFINITY, 0.0), |(lo, hi): (Real, Real), b| {
+                (lo.min(b.inv_mass), hi.max(b.inv_mass))
+            });
+        largest > self.config.heavy_ratio * smallest
+    }
+
+    /// Whether `ctx`'s island starts from [`RelaxedConfig::heavy_alpha`]'s extrapolation: a
+    /// heavy island under a pass budget, no other start given.
+    fn extrapolates(&self, ctx: &WarmStartContext<'_>) -> bool {
+        self.heavy.is_some()
+            && self.start.is_none()
+            && ctx.pass_budget.is_some()
+            && self.heavy(ctx.problem)
     }
 
     /// Whether [`RelaxedConfig::mix_below`] sends `problem` to the mixed sweeps.
@@ -272,18 +320,7 @@ impl RelaxedWarmStart {
             .iter()
             .filter(|&&(start, end)| end == start + 1)
             .count();
-        if single as Real >= self.config.mix_below * problem.len() as Real {
-            return false;
-        }
-        let (lightest, heaviest) = problem
-            .bodies
-            .iter()
-            .filter(|b| b.inv_mass > 0.0)
-            .fold((Real::INFINITY, 0.0), |(lo, hi): (Real, Real), b| {
-                (lo.min(b.inv_mass), hi.max(b.inv_mass))
-            });
-        // Inverse masses: the heaviest body has the smallest.
-        heaviest <= self.config.mix_mass_ratio * lightest
+        (single as Real) < self.config.mix_below * problem.len() as Real && !self.heavy(problem)
     }
 
     /// The mixed sweeps from the start in `out` within `cap` passes (one kept for the solver,
@@ -443,12 +480,20 @@ impl WarmStart for RelaxedWarmStart {
         out: &mut [Impulse],
     ) -> Result<(), WarmStartError> {
         self.last_passes = 0;
-        match &mut self.start {
-            Some(start) => {
+        let extrapolates = self.extrapolates(ctx);
+        match (&mut self.start, self.heavy.as_mut()) {
+            (Some(start), _) => {
                 start.warm_start(ctx, out)?;
                 self.last_passes = start.passes_spent();
             }
-            None => CarriedWarmStart.warm_start(ctx, out)?,
+            (None, Some(heavy)) if extrapolates => {
+                // No sweeps: the solver takes the whole budget from the extrapolated start
+                // (relaxed sweeps raise a heavy tower's residual at K = 8; docs/RESEARCH.md).
+                heavy.warm_start(ctx, out)?;
+                self.extrapolated += 1;
+                return Ok(());
+            }
+            (None, _) => CarriedWarmStart.warm_start(ctx, out)?,
         }
         if out.is_empty() {
             return Ok(());
@@ -538,14 +583,22 @@ impl WarmStart for RelaxedWarmStart {
     /// `extrapolate`, needs it). What it is shown as the start used is the sweeps' output, the
     /// start the solver applied; the solved impulses and the report are the solve's.
     fn observe(&mut self, ctx: &WarmStartContext<'_>, seen: &Observation<'_>) {
-        if let Some(start) = &mut self.start {
-            start.observe(ctx, seen);
+        // The world's observation carries no pass budget: every heavy island is seen, so that
+        // its last change is known when a budget comes.
+        let extrapolates = self.heavy.is_some() && self.heavy(ctx.problem);
+        match (&mut self.start, self.heavy.as_mut()) {
+            (Some(start), _) => start.observe(ctx, seen),
+            (None, Some(heavy)) if extrapolates => heavy.observe(ctx, seen),
+            (None, _) => {}
         }
     }
 
     fn reset(&mut self) {
         (self.sweeps, self.islands, self.step_max_sum, self.steps) = (0, 0, 0, 0);
-        (self.dropped, self.gated, self.mixed) = (0, 0, 0);
+        (self.dropped, self.gated, self.mixed, self.extrapolated) = (0, 0, 0, 0);
+        if let Some(heavy) = &mut self.heavy {
+            heavy.reset();
+        }
         self.current = None;
         if let Some(start) = &mut self.start {
             start.reset();
@@ -557,7 +610,8 @@ impl WarmStart for RelaxedWarmStart {
     /// which the comparison counts on a step's slowest island, so that the total work of a
     /// step is both), `dropped` (islands whose diverging sweeps were replaced by the
     /// carried impulses), `gated` (islands above [`RelaxedConfig::max_points`], not swept) and
-    /// `mixed` (islands refined by the mixed sweeps of [`RelaxedConfig::mix_below`]);
+    /// `mixed` (islands refined by the mixed sweeps of [`RelaxedConfig::mix_below`]) and
+    /// `extrapolated` (heavy islands started from [`RelaxedConfig::heavy_alpha`]'s extrapolation);
     /// then the start's own, each name prefixed `start_`.
     fn diagnostics(&self) -> Vec<(String, Real)> {
         let (mut sum, mut steps) = (self.step_max_sum, self.steps);
@@ -572,6 +626,7 @@ impl WarmStart for RelaxedWarmStart {
             ("dropped".into(), self.dropped as Real),
             ("gated".into(), self.gated as Real),
             ("mixed".into(), self.mixed as Real),
+            ("extrapolated".into(), self.extrapolated as Real),
         ];
         let start = self.start.iter().flat_map(|s| s.diagnostics());
         own.into_iter()

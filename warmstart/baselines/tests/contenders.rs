@@ -662,7 +662,7 @@ fn sor_budget_omega_caps_the_factors_under_a_budget_only() {
 
 /// Under a pass budget `mix_below` hands the towers' islands (boxes on boxes: no single-point
 /// rows) to Anderson-mixed single sweeps, the bits of `anderson:sweeps=1,window=3`; the
-/// island of a tower under a box 100 times heavier than the rest (`mix_mass_ratio`) and the
+/// island of a tower under a box 100 times heavier than the rest (`heavy_ratio`) and the
 /// tolerance mode keep the relaxed sweeps, bit for bit.
 #[test]
 fn sor_mix_below_mixes_the_towers_under_a_budget_and_spares_the_heavy_box() {
@@ -793,10 +793,109 @@ fn sor_mix_below_mixes_the_towers_under_a_budget_and_spares_the_heavy_box() {
             ..RelaxedConfig::default()
         },
         RelaxedConfig {
-            mix_mass_ratio: 0.5,
+            heavy_ratio: 0.5,
             ..RelaxedConfig::default()
         },
     ] {
+        assert!(RelaxedWarmStart::new(config).is_err(), "{config:?}");
+    }
+}
+
+/// Under a pass budget `heavy_alpha` starts a heavy island (masses more than `heavy_ratio`
+/// apart) from the extrapolated impulses and leaves the whole budget to the solver: on the
+/// resting island of a tower under a box 100 times heavier, the start of `extrapolate` at the
+/// same weight, no sweeps; in a world, other bits than without it under a budget, and the same
+/// bits without a budget.
+#[test]
+fn sor_heavy_alpha_starts_heavy_towers_from_the_extrapolation_under_a_budget() {
+    use deepcontact_core::{WorldSettings, scene};
+    use deepcontact_pgs::PgsPositionSolver;
+    let tower = || {
+        let params = scene::StackParams {
+            count: 5,
+            ratio: 100.0,
+            jitter: 0.01,
+            ..scene::StackParams::default()
+        };
+        scene::ratio_stack(100, &params).unwrap()
+    };
+    let sor = |heavy_alpha: f64| {
+        RelaxedWarmStart::new(RelaxedConfig {
+            heavy_alpha,
+            ..RelaxedConfig::default()
+        })
+        .unwrap()
+    };
+    let count = |provider: &RelaxedWarmStart, what: &str| {
+        provider
+            .diagnostics()
+            .into_iter()
+            .find(|(name, _)| name == what)
+            .map(|(_, v)| v)
+            .unwrap()
+    };
+    // The resting island, two steps of starts and solves.
+    let mut world = tower().build(WorldSettings::default()).unwrap();
+    let (mut solver, mut position) = (PgsSolver::new(), PgsPositionSolver::new());
+    for _ in 0..60 {
+        world
+            .step(&mut CarriedWarmStart, &mut solver, &mut position)
+            .unwrap();
+    }
+    let island = world.last_problems()[0].clone();
+    assert_eq!(island.bodies.iter().filter(|b| b.inv_mass > 0.0).count(), 5);
+    let starts = |provider: &mut dyn WarmStart| {
+        let mut carried = vec![None; island.len()];
+        let mut all = Vec::new();
+        for step in 1..4 {
+            let ctx = WarmStartContext::new(&island, &carried, step, DT).with_pass_budget(7);
+            let mut out = vec![Impulse::ZERO; island.len()];
+            provider.warm_start(&ctx, &mut out).unwrap();
+            assert_eq!(provider.passes_spent(), 0, "no sweeps");
+            all.extend(
+                out.iter()
+                    .flat_map(|i| [i.normal.to_bits(), i.tangent.to_bits()]),
+            );
+            // The next step carries a tenth more load than this one's solve.
+            let solved = observe(provider, &island, &carried, step, &out);
+            carried = solved
+                .iter()
+                .map(|i| Some(Impulse::new(1.1 * i.normal, i.tangent)))
+                .collect();
+        }
+        all
+    };
+    let mut heavy = sor(0.25);
+    let ours = starts(&mut heavy);
+    assert_eq!(ours, starts(&mut ExtrapolatedWarmStart::new(0.25).unwrap()));
+    assert_ne!(ours, starts(&mut CarriedWarmStart));
+    assert_eq!(count(&heavy, "extrapolated"), 3.0);
+    // In the world: under a budget it changes the run, without one it does not.
+    let run = |provider: &mut dyn WarmStart, budget: Option<u32>| -> Vec<u64> {
+        let settings = WorldSettings {
+            budget,
+            ..WorldSettings::default()
+        };
+        let mut world = tower().build(settings).unwrap();
+        let (mut solver, mut position) = (PgsSolver::new(), PgsPositionSolver::new());
+        (0..60)
+            .map(|_| {
+                let r = world.step(provider, &mut solver, &mut position).unwrap();
+                r.natural_residual.to_bits()
+            })
+            .collect()
+    };
+    let mut budgeted = sor(0.25);
+    assert_ne!(run(&mut budgeted, Some(8)), run(&mut sor(0.0), Some(8)));
+    assert!(count(&budgeted, "extrapolated") > 30.0);
+    let mut unbudgeted = sor(0.25);
+    assert_eq!(run(&mut unbudgeted, None), run(&mut sor(0.0), None));
+    assert_eq!(count(&unbudgeted, "extrapolated"), 0.0);
+    for heavy_alpha in [-0.5, f64::NAN] {
+        let config = RelaxedConfig {
+            heavy_alpha,
+            ..RelaxedConfig::default()
+        };
         assert!(RelaxedWarmStart::new(config).is_err(), "{config:?}");
     }
 }

@@ -36,13 +36,18 @@ pub const LEARNED_BUDGET_OMEGA: f64 = 1.5;
 /// report seeds it lowers the towers' residual p99 at K = 8 and 16 (docs/RESEARCH.md).
 pub const LEARNED_MIX_BELOW: f64 = 0.15;
 
+/// `learned-sor`'s [`RelaxedConfig::heavy_alpha`]: under a pass budget, a heavy island (masses
+/// more than [`RelaxedConfig::heavy_ratio`] apart) starts from its carried impulses continued
+/// along their last change with this weight.
+pub const LEARNED_HEAVY_ALPHA: f64 = 0.25;
+
 /// Registers `learned-sor`: the shipped policy, or `path=policy.json`; `name=` renames it,
 /// `sweeps=` (300) and `tolerance=` (1e-4) bound its sweeps as `sor`'s; `pairs=`
 /// ([`LEARNED_PAIRS`]) relaxes two-point manifolds; under a pass budget the sweeps follow the
 /// learned schedule of that budget (`schedules=shipped`, [`shipped_schedules`]; or a file's,
 /// `schedules=PATH`; or, with `schedules=none`, the policy's factors capped at `budget_omega=`,
 /// [`LEARNED_BUDGET_OMEGA`]); `max_points=` leaves larger islands unswept; `mix_below=`
-/// ([`LEARNED_MIX_BELOW`]) and `mix_mass_ratio=` (10) send towers of boxes under a budget to
+/// ([`LEARNED_MIX_BELOW`]) and `heavy_ratio=` (10) send towers of boxes under a budget to
 /// Anderson-mixed sweeps ([`RelaxedConfig::mix_below`]).
 pub fn register(registry: &mut Registry) {
     registry.register_provider(
@@ -55,7 +60,8 @@ pub fn register(registry: &mut Registry) {
              a path reads another file, none keeps the policy's factors capped by budget_omega), \
              budget_omega=1.5 (largest policy factor under a pass budget with schedules=none), max_points=none (larger islands get the carried impulses unswept), \
              mix_below=0.15 (under a pass budget, islands with fewer than this share of their points in single-point manifolds, towers of boxes, get \
-             Anderson-mixed single sweeps instead; 0: never), mix_mass_ratio=10 (not where two movable bodies' masses differ more)",
+             Anderson-mixed single sweeps instead; 0: never), heavy_ratio=10 (an island whose movable bodies' masses differ more is heavy: not mixed), \
+             heavy_alpha=0.25 (under a pass budget, a heavy island starts from its carried impulses continued along their last change by this weight)",
         )
         .learned(),
         |p, _| {
@@ -79,7 +85,8 @@ pub fn register(registry: &mut Registry) {
                 max_points: usize::try_from(p.u64("max_points", d.max_points as u64)?)
                     .unwrap_or(usize::MAX),
                 mix_below: p.f64("mix_below", LEARNED_MIX_BELOW)?,
-                mix_mass_ratio: p.f64("mix_mass_ratio", d.mix_mass_ratio)?,
+                heavy_ratio: p.f64("heavy_ratio", d.heavy_ratio)?,
+                heavy_alpha: p.f64("heavy_alpha", LEARNED_HEAVY_ALPHA)?,
                 ..d
             };
             let schedules = match p.string("schedules") {
