@@ -42,6 +42,15 @@ use crate::{AndersonConfig, AndersonWarmStart, BudgetSchedules, ExtrapolatedWarm
 /// that lets a mixed step be evaluated. Below it the relaxed sweeps run.
 pub const MIX_MIN_PASSES: u32 = 4;
 
+/// What [`RelaxedWarmStart`]'s start left to do.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Begun {
+    /// Sweep the start.
+    ToSweep,
+    /// The start is the output.
+    Final,
+}
+
 /// Parameters of [`RelaxedWarmStart`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RelaxedConfig {
@@ -195,6 +204,9 @@ pub struct RelaxedWarmStart {
     heavy: Option<ExtrapolatedWarmStart>,
     /// Heavy islands started from the extrapolation.
     extrapolated: u64,
+    /// Whether the last island came with a pass budget: only then are heavy islands observed
+    /// for the extrapolation (the world's observation carries no budget of its own).
+    budgeted: bool,
 }
 
 impl RelaxedWarmStart {
@@ -245,10 +257,7 @@ impl RelaxedWarmStart {
             Self::MAX_SWEEPS,
             config.tolerance,
         )?;
-        let heavy = (config.heavy_alpha != 0.0)
-            .then(|| ExtrapolatedWarmStart::new(config.heavy_alpha))
-            .transpose()?;
-        if config.heavy_alpha < 0.0 {
+        if !(config.heavy_alpha.is_finite() && config.heavy_alpha >= 0.0) {
             return Err(SpecError::InvalidParameter {
                 spec: "sor".into(),
                 param: "heavy_alpha".into(),
@@ -256,6 +265,9 @@ impl RelaxedWarmStart {
                 reason: "must be finite and >= 0".into(),
             });
         }
+        let heavy = (config.heavy_alpha > 0.0)
+            .then(|| ExtrapolatedWarmStart::new(config.heavy_alpha))
+            .transpose()?;
         let mixing = (config.mix_below > 0.0)
             .then(|| {
                 AndersonWarmStart::new(AndersonConfig {
@@ -288,6 +300,7 @@ impl RelaxedWarmStart {
             mixed: 0,
             heavy,
             extrapolated: 0,
+            budgeted: false,
         })
     }
 
@@ -347,6 +360,57 @@ impl RelaxedWarmStart {
         {
             self.dropped += 1;
             out.copy_from_slice(&self.first);
+        }
+        Ok(())
+    }
+
+    /// The start the sweeps refine, into `out`: the given start's (its passes counted), a
+    /// heavy island's extrapolation under a budget ([`RelaxedConfig::heavy_alpha`]; final,
+    /// no sweeps: the solver takes the whole budget, as relaxed sweeps raise a heavy tower's
+    /// residual at K = 8, docs/RESEARCH.md), or the carried impulses.
+    fn begin(
+        &mut self,
+        ctx: &WarmStartContext<'_>,
+        out: &mut [Impulse],
+    ) -> Result<Begun, WarmStartError> {
+        let extrapolates = self.extrapolates(ctx);
+        match (&mut self.start, self.heavy.as_mut()) {
+            (Some(start), _) => {
+                start.warm_start(ctx, out)?;
+                self.last_passes = start.passes_spent();
+            }
+            (None, Some(heavy)) if extrapolates => {
+                heavy.warm_start(ctx, out)?;
+                self.extrapolated += 1;
+                return Ok(Begun::Final);
+            }
+            (None, _) => CarriedWarmStart.warm_start(ctx, out)?,
+        }
+        Ok(Begun::ToSweep)
+    }
+
+    /// The policy's per-point factors into `omegas` (when there is a policy), checked: one per
+    /// point, each in [1, 2).
+    fn policy_omegas(&mut self, ctx: &WarmStartContext<'_>) -> Result<(), WarmStartError> {
+        let Some(policy) = self.relaxation.as_mut() else {
+            return Ok(());
+        };
+        policy.omegas(ctx, &mut self.omegas)?;
+        if self.omegas.len() != ctx.problem.len() {
+            return Err(WarmStartError::WrongLength {
+                expected: ctx.problem.len(),
+                got: self.omegas.len(),
+            });
+        }
+        if let Some((i, w)) = self
+            .omegas
+            .iter()
+            .enumerate()
+            .find(|(_, w)| !(1.0..2.0).contains(*w))
+        {
+            return Err(WarmStartError::Provider(format!(
+                "relaxation factor {w} of point {i} is outside [1, 2)"
+            )));
         }
         Ok(())
     }
@@ -480,20 +544,9 @@ impl WarmStart for RelaxedWarmStart {
         out: &mut [Impulse],
     ) -> Result<(), WarmStartError> {
         self.last_passes = 0;
-        let extrapolates = self.extrapolates(ctx);
-        match (&mut self.start, self.heavy.as_mut()) {
-            (Some(start), _) => {
-                start.warm_start(ctx, out)?;
-                self.last_passes = start.passes_spent();
-            }
-            (None, Some(heavy)) if extrapolates => {
-                // No sweeps: the solver takes the whole budget from the extrapolated start
-                // (relaxed sweeps raise a heavy tower's residual at K = 8; docs/RESEARCH.md).
-                heavy.warm_start(ctx, out)?;
-                self.extrapolated += 1;
-                return Ok(());
-            }
-            (None, _) => CarriedWarmStart.warm_start(ctx, out)?,
+        self.budgeted = ctx.pass_budget.is_some();
+        if self.begin(ctx, out)? == Begun::Final {
+            return Ok(());
         }
         if out.is_empty() {
             return Ok(());
@@ -506,24 +559,8 @@ impl WarmStart for RelaxedWarmStart {
         self.first.clear();
         self.first.extend_from_slice(out);
         let schedule = self.schedule(ctx.pass_budget);
-        if let Some(policy) = self.relaxation.as_mut().filter(|_| schedule.is_empty()) {
-            policy.omegas(ctx, &mut self.omegas)?;
-            if self.omegas.len() != problem.len() {
-                return Err(WarmStartError::WrongLength {
-                    expected: problem.len(),
-                    got: self.omegas.len(),
-                });
-            }
-            if let Some((i, w)) = self
-                .omegas
-                .iter()
-                .enumerate()
-                .find(|(_, w)| !(1.0..2.0).contains(*w))
-            {
-                return Err(WarmStartError::Provider(format!(
-                    "relaxation factor {w} of point {i} is outside [1, 2)"
-                )));
-            }
+        if schedule.is_empty() {
+            self.policy_omegas(ctx)?;
         }
         // Under a budget the start's own passes come out of the sweeps' share.
         let cap = ctx
@@ -583,9 +620,9 @@ impl WarmStart for RelaxedWarmStart {
     /// `extrapolate`, needs it). What it is shown as the start used is the sweeps' output, the
     /// start the solver applied; the solved impulses and the report are the solve's.
     fn observe(&mut self, ctx: &WarmStartContext<'_>, seen: &Observation<'_>) {
-        // The world's observation carries no pass budget: every heavy island is seen, so that
-        // its last change is known when a budget comes.
-        let extrapolates = self.heavy.is_some() && self.heavy(ctx.problem);
+        // The observation's context carries no pass budget: the warm start's said whether
+        // there was one.
+        let extrapolates = self.budgeted && self.heavy.is_some() && self.heavy(ctx.problem);
         match (&mut self.start, self.heavy.as_mut()) {
             (Some(start), _) => start.observe(ctx, seen),
             (None, Some(heavy)) if extrapolates => heavy.observe(ctx, seen),
