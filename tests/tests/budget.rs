@@ -41,13 +41,22 @@ impl WarmStart for Ledger {
 
 /// Steps a 100-circle pile `steps` times under `budget` passes with `provider`.
 fn ledger(provider: &str, budget: Option<u32>, steps: usize) -> Ledger {
+    ledger_of(
+        full_registry().build_provider(provider).unwrap(),
+        budget,
+        steps,
+    )
+}
+
+/// [`ledger`] for a built provider.
+fn ledger_of(provider: Box<dyn WarmStart>, budget: Option<u32>, steps: usize) -> Ledger {
     let settings = WorldSettings {
         budget,
         ..WorldSettings::default()
     };
     let mut world = scene::pile(7, 100).unwrap().build(settings).unwrap();
     let mut ledger = Ledger {
-        inner: full_registry().build_provider(provider).unwrap(),
+        inner: provider,
         offered: Vec::new(),
         spent: Vec::new(),
         solved: Vec::new(),
@@ -125,4 +134,53 @@ fn regression_grid_hid_its_inner_providers_passes() {
     for (i, (&spent, &solved)) in l.spent.iter().zip(&l.solved).enumerate() {
         assert_eq!(spent + solved, 8, "island {i}: {spent} + {solved}");
     }
+}
+
+/// `krylov` ran its ten conjugate-gradient steps (21 passes) whatever the budget, so under a
+/// budget of 8 it spent about three times the passes it was offered.
+#[test]
+fn regression_krylov_spent_more_passes_than_it_was_offered() {
+    let l = ledger("krylov", Some(8), 90);
+    assert!(l.spent.len() > 100, "{} islands solved", l.spent.len());
+    // Seven passes fit a round of three steps: its residual and 2 × 3 applications of W.
+    assert!(l.spent.iter().any(|&s| s == 7), "a correction ran");
+    for (i, (&spent, &solved)) in l.spent.iter().zip(&l.solved).enumerate() {
+        assert!(spent <= 7, "island {i}: krylov spent {spent}");
+        assert_eq!(spent + solved, 8, "island {i}: {spent} + {solved}");
+    }
+}
+
+/// Oracles (which solve the island to build their start) are left out: they are references,
+/// not providers a budget judges. So are the providers that read a model file named on the
+/// command line (`onnx`, `graph-file`): no such file is in the repository.
+#[test]
+fn every_provider_spends_at_most_the_passes_it_is_offered() {
+    let registry = full_registry();
+    let names: Vec<String> = registry
+        .providers()
+        .map(|(n, _)| n.to_string())
+        .filter(|n| !registry.provider_info(n).is_some_and(|i| i.oracle))
+        .collect();
+    assert!(names.len() >= 15, "{} providers", names.len());
+    let (mut over, mut ran) = (Vec::new(), 0);
+    for name in &names {
+        let provider = match registry.build_provider(name) {
+            Ok(provider) => provider,
+            Err(e) if e.to_string().contains("path=") => continue,
+            Err(e) => panic!("{name}: {e}"),
+        };
+        ran += 1;
+        let l = ledger_of(provider, Some(8), 60);
+        assert!(!l.spent.is_empty(), "{name}: no island solved");
+        assert!(l.offered.iter().all(|&o| o == Some(7)), "{name}");
+        if let Some(&most) = l.spent.iter().max().filter(|&&m| m > 7) {
+            over.push(format!("{name} spent {most}"));
+        }
+    }
+    assert!(
+        ran + 2 >= names.len(),
+        "{ran} of {} providers ran",
+        names.len()
+    );
+    assert!(over.is_empty(), "over a budget of 7: {over:?}");
 }

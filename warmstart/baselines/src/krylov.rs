@@ -26,7 +26,8 @@ const NULL_SPACE: Real = 1e-9;
 /// Parameters of [`KrylovWarmStart`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct KrylovConfig {
-    /// Conjugate-gradient steps per island (default 10, in 1..=[`KrylovWarmStart::MAX_ITERATIONS`]).
+    /// Conjugate-gradient steps per island (default 10, in 1..=[`KrylovWarmStart::MAX_ITERATIONS`];
+    /// fewer where a pass budget leaves room for fewer).
     pub iterations: u32,
     /// Whether friction rows of sticking points join the system (default true).
     pub friction: bool,
@@ -162,10 +163,15 @@ impl KrylovWarmStart {
 
     /// At most `iterations` Jacobi-preconditioned CG steps on `W_AA x = r` from `x = 0`;
     /// returns the steps taken.
-    fn conjugate_gradient(&mut self, problem: &ContactProblem, mut rz: Real) -> u32 {
+    fn conjugate_gradient(
+        &mut self,
+        problem: &ContactProblem,
+        mut rz: Real,
+        iterations: u32,
+    ) -> u32 {
         let rows = self.x.len();
         let mut steps = 0;
-        for _ in 0..self.config.iterations {
+        for _ in 0..iterations {
             if rz <= 0.0 {
                 break;
             }
@@ -224,11 +230,19 @@ impl WarmStart for KrylovWarmStart {
         if out.is_empty() {
             return Ok(());
         }
+        // The residual is one pass over the rows, a CG step two (W applied matrix-free); under
+        // a pass budget a round runs only if at least one step fits, with as many as fit.
+        let mut left = ctx.pass_budget.unwrap_or(u32::MAX);
         for _ in 0..self.config.rounds {
+            let iterations = self.config.iterations.min(left.saturating_sub(1) / 2);
+            if iterations == 0 {
+                break;
+            }
             self.select_active(ctx.problem, out);
             let rz = self.residual(ctx.problem, out);
-            // The residual is one pass over the rows, a CG step two (W applied matrix-free).
-            self.last_passes += 1 + 2 * self.conjugate_gradient(ctx.problem, rz);
+            let spent = 1 + 2 * self.conjugate_gradient(ctx.problem, rz, iterations);
+            self.last_passes += spent;
+            left -= spent;
             for (i, (o, p)) in out.iter_mut().zip(&ctx.problem.points).enumerate() {
                 *o = in_cone(
                     o.normal + self.x[2 * i],
@@ -241,7 +255,8 @@ impl WarmStart for KrylovWarmStart {
     }
 
     /// One pass per round for its residual and two per conjugate-gradient step (each an
-    /// application of W over the rows), on the last island.
+    /// application of W over the rows), on the last island; never more than the context's
+    /// [`WarmStartContext::pass_budget`] (the steps and rounds that do not fit are not run).
     fn passes_spent(&self) -> u32 {
         self.last_passes
     }
