@@ -63,8 +63,10 @@ pub struct WarmStartContext<'a> {
     /// The world being stepped, if the problem comes from one (`None` for hand-built problems).
     pub world: Option<&'a crate::World>,
     /// Under a fixed budget ([`WorldSettings::budget`](crate::WorldSettings::budget)), the
-    /// most passes over this island's contact rows the provider may spend; the solver gets
-    /// the rest. `None` (the default): no budget, the provider spends what it likes.
+    /// most passes over this island's contact rows the provider may spend, in
+    /// [`WarmStart::warm_start`] and [`WarmStart::observe`] together (both get the same
+    /// value); the solver gets the rest. `None` (the default): no budget, the provider spends
+    /// what it likes.
     pub pass_budget: Option<u32>,
 }
 

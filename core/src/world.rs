@@ -773,7 +773,12 @@ impl World {
             &mut work.warm,
             plugins.solver.projects_start(),
         );
-        let ctx = self.island_context(&s.problems, k, &work.carried);
+        let mut ctx = self.island_context(&s.problems, k, &work.carried);
+        // The same budget as the island's warm start: sweeps a provider runs after the solve
+        // (`tail`'s) are part of its passes.
+        if let Some(budget) = self.settings.budget {
+            ctx = ctx.with_pass_budget(budget - 1);
+        }
         // What a provider does after the solve is part of its cost.
         let t0 = Instant::now();
         plugins.warm_start.observe(

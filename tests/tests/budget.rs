@@ -164,23 +164,55 @@ fn every_provider_spends_at_most_the_passes_it_is_offered() {
     assert!(names.len() >= 15, "{} providers", names.len());
     let (mut over, mut ran) = (Vec::new(), 0);
     for name in &names {
-        let provider = match registry.build_provider(name) {
-            Ok(provider) => provider,
-            Err(e) if e.to_string().contains("path=") => continue,
-            Err(e) => panic!("{name}: {e}"),
-        };
-        ran += 1;
-        let l = ledger_of(provider, Some(8), 60);
-        assert!(!l.spent.is_empty(), "{name}: no island solved");
-        assert!(l.offered.iter().all(|&o| o == Some(7)), "{name}");
-        if let Some(&most) = l.spent.iter().max().filter(|&&m| m > 7) {
-            over.push(format!("{name} spent {most}"));
+        // The smallest budget (one pass for the provider), a small one and the suite's.
+        for budget in [2, 4, 8] {
+            let provider = match registry.build_provider(name) {
+                Ok(provider) => provider,
+                Err(e) if e.to_string().contains("path=") => continue,
+                Err(e) => panic!("{name}: {e}"),
+            };
+            ran += 1;
+            let l = ledger_of(provider, Some(budget), 60);
+            assert!(!l.spent.is_empty(), "{name}: no island solved");
+            assert!(l.offered.iter().all(|&o| o == Some(budget - 1)), "{name}");
+            if let Some(&most) = l.spent.iter().max().filter(|&&m| m > budget - 1) {
+                over.push(format!("{name} spent {most} of {}", budget - 1));
+            }
         }
     }
     assert!(
-        ran + 2 >= names.len(),
-        "{ran} of {} providers ran",
-        names.len()
+        ran + 6 >= 3 * names.len(),
+        "{ran} of {} runs",
+        3 * names.len()
     );
-    assert!(over.is_empty(), "over a budget of 7: {over:?}");
+    assert!(over.is_empty(), "over the budget offered: {over:?}");
+}
+
+/// `best` asked and scored all four of its candidates whatever the budget (`tail`'s two sweeps
+/// and four scoring passes: 6), so under the suite's smallest budget, 4, it spent twice the 3
+/// passes it was offered.
+#[test]
+fn regression_best_spent_six_passes_under_a_budget_of_four() {
+    let l = ledger("best", Some(4), 90);
+    assert!(l.spent.len() > 100, "{} islands solved", l.spent.len());
+    // builtin and extrapolate scored (a pass each), tail offered the last pass: none left
+    // for its sweeps, one to score it.
+    assert!(l.spent.contains(&3), "three candidates scored");
+    for (i, (&spent, &solved)) in l.spent.iter().zip(&l.solved).enumerate() {
+        assert!(spent <= 3, "island {i}: best spent {spent}");
+        assert_eq!(spent + solved, 4, "island {i}: {spent} + {solved}");
+    }
+}
+
+/// `tail` ran its two sweeps after every solve whatever the budget, so under a budget of 2
+/// (one pass for the provider) it spent two.
+#[test]
+fn regression_tail_swept_twice_with_one_pass_offered() {
+    let l = ledger("tail", Some(2), 90);
+    assert!(l.spent.len() > 100, "{} islands solved", l.spent.len());
+    assert!(l.spent.iter().all(|&s| s == 1), "{:?}", &l.spent[..8]);
+    assert!(l.solved.iter().all(|&s| s == 1));
+    // With room for both sweeps it runs both.
+    let l = ledger("tail", Some(8), 90);
+    assert!(!l.spent.is_empty() && l.spent.iter().all(|&s| s == 2));
 }

@@ -12,6 +12,11 @@ use crate::rows::{natural_residual_sq, velocities_after};
 /// candidates with memory keep learning whichever start won. A candidate that fails is
 /// skipped; if all fail the error of the last one is returned.
 ///
+/// Under a pass budget ([`WarmStartContext::pass_budget`]) the candidates are asked in order
+/// while passes are left: each is offered what is left less the pass that scores it, and
+/// the candidates after the budget ran out are not asked (they observe the solve with a
+/// budget of 0, so one that sweeps after the solve, as `tail` does, runs no sweeps).
+///
 /// ```
 /// use deepcontact_core::{CarriedWarmStart, WarmStart, ZeroWarmStart};
 /// use deepcontact_warmstart::BestOfWarmStart;
@@ -26,6 +31,11 @@ pub struct BestOfWarmStart {
     velocities: Vec<Velocity>,
     /// Islands each candidate won.
     wins: Vec<u64>,
+    /// Per island of the step (`ctx.island`), per candidate: the pass budget it was offered
+    /// (`None`: no budget), which its `observe` gets too.
+    offered: Vec<Option<u32>>,
+    /// Passes of the last island: the candidates' and one per candidate scored.
+    last_passes: u32,
 }
 
 impl std::fmt::Debug for BestOfWarmStart {
@@ -56,6 +66,8 @@ impl BestOfWarmStart {
             flat: Vec::new(),
             velocities: Vec::new(),
             wins,
+            offered: Vec::new(),
+            last_passes: 0,
         })
     }
 }
@@ -72,16 +84,35 @@ impl WarmStart for BestOfWarmStart {
     ) -> Result<(), WarmStartError> {
         let mut best: Option<(Real, usize)> = None;
         let mut last_error = None;
+        let n = self.candidates.len();
+        let at = ctx.island * n;
+        if self.offered.len() < at + n {
+            self.offered.resize(at + n, None);
+        }
+        let mut spent = 0;
         for (c, candidate) in self.candidates.iter_mut().enumerate() {
+            let offer = match ctx.pass_budget {
+                None => None,
+                // One of the passes left scores the candidate.
+                Some(b) if b > spent => Some(b - spent - 1),
+                Some(_) => {
+                    self.offered[at + c] = Some(0);
+                    continue;
+                }
+            };
+            self.offered[at + c] = offer;
+            let asked = offer.map_or(*ctx, |o| ctx.with_pass_budget(o));
             self.trial.clear();
             self.trial.resize(out.len(), Impulse::ZERO);
             let produced = candidate
-                .warm_start(ctx, &mut self.trial)
+                .warm_start(&asked, &mut self.trial)
                 .and_then(|_| deepcontact_core::warm_start::check_output(&self.trial, out.len()));
+            spent += candidate.passes_spent();
             if let Err(e) = produced {
                 last_error = Some(e);
                 continue;
             }
+            spent += 1;
             velocities_after(
                 ctx.problem,
                 &self.trial,
@@ -94,6 +125,7 @@ impl WarmStart for BestOfWarmStart {
                 out.copy_from_slice(&self.trial);
             }
         }
+        self.last_passes = spent;
         match (best, last_error) {
             (Some((_, c)), _) => {
                 self.wins[c] += 1;
@@ -105,8 +137,12 @@ impl WarmStart for BestOfWarmStart {
     }
 
     fn observe(&mut self, ctx: &WarmStartContext<'_>, seen: &Observation<'_>) {
-        for c in &mut self.candidates {
-            c.observe(ctx, seen);
+        let at = ctx.island * self.candidates.len();
+        for (c, candidate) in self.candidates.iter_mut().enumerate() {
+            match self.offered.get(at + c).copied().flatten() {
+                Some(o) => candidate.observe(&ctx.with_pass_budget(o), seen),
+                None => candidate.observe(ctx, seen),
+            }
         }
     }
 
@@ -126,9 +162,9 @@ impl WarmStart for BestOfWarmStart {
             .collect()
     }
 
-    /// Every candidate's passes, and one per candidate for scoring it (its velocities and
-    /// residual are a pass over the rows).
+    /// On the last island, the passes of every candidate asked, and one per candidate scored
+    /// (its velocities and residual are a pass over the rows).
     fn passes_spent(&self) -> u32 {
-        self.candidates.iter().map(|c| c.passes_spent() + 1).sum()
+        self.last_passes
     }
 }

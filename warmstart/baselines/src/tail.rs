@@ -65,6 +65,8 @@ pub struct TailWarmStart {
     report: SolveReport,
     rate_sum: Real,
     rate_count: u64,
+    /// The sweeps the last island's `observe` runs (see `passes_spent`).
+    last_passes: u32,
 }
 
 impl std::fmt::Debug for TailWarmStart {
@@ -126,6 +128,7 @@ impl TailWarmStart {
             report: SolveReport::default(),
             rate_sum: 0.0,
             rate_count: 0,
+            last_passes: 0,
         })
     }
 
@@ -134,13 +137,14 @@ impl TailWarmStart {
         &self.config
     }
 
-    /// Runs the sweeps from `solved`; returns the rate of the last increment against the
+    /// Runs `sweeps` sweeps from `solved`; returns the rate of the last increment against the
     /// one before (`previous_norm`, the solve's last 2-norm residual, for one sweep).
     fn sweep_from(
         &mut self,
         ctx: &WarmStartContext<'_>,
         solved: &[Impulse],
         previous_norm: Real,
+        sweeps: u32,
     ) -> Result<Real, deepcontact_core::CoreError> {
         self.lambda.clear();
         self.lambda.extend_from_slice(solved);
@@ -149,7 +153,7 @@ impl TailWarmStart {
             .resize(ctx.problem.bodies.len(), Velocity::default());
         let mut last = previous_norm;
         let mut rate = 0.0;
-        for _ in 0..self.config.sweeps {
+        for _ in 0..sweeps {
             self.before.clear();
             self.before.extend_from_slice(&self.lambda);
             self.solver.solve(
@@ -178,12 +182,19 @@ impl WarmStart for TailWarmStart {
         out: &mut [Impulse],
     ) -> Result<(), WarmStartError> {
         self.starts.fill(ctx, out);
+        self.last_passes = ctx.passes_allowed(self.config.sweeps);
         Ok(())
     }
 
+    /// Runs the sweeps (as many as the context's pass budget allows; none: the island's
+    /// points get the carried impulses next step) and stores the extrapolated starts.
     fn observe(&mut self, ctx: &WarmStartContext<'_>, seen: &Observation<'_>) {
+        let sweeps = ctx.passes_allowed(self.config.sweeps);
+        if sweeps == 0 {
+            return;
+        }
         let previous_norm = seen.report.residual_l2.last().copied().unwrap_or(0.0);
-        let Ok(rate) = self.sweep_from(ctx, seen.solved, previous_norm) else {
+        let Ok(rate) = self.sweep_from(ctx, seen.solved, previous_norm, sweeps) else {
             // A sweep that fails leaves this island to the carried impulses.
             return;
         };
@@ -214,10 +225,11 @@ impl WarmStart for TailWarmStart {
         self.rate_count = 0;
     }
 
-    /// The extra sweeps it runs on every island after the solve (in `observe`), which make
-    /// the next step's start: its cost per island and step.
+    /// The extra sweeps it runs on the last island after the solve (in `observe`), which
+    /// make the next step's start: its cost per island and step, `sweeps` or fewer under a
+    /// pass budget ([`WarmStartContext::pass_budget`], which `observe` gets too).
     fn passes_spent(&self) -> u32 {
-        self.config.sweeps
+        self.last_passes
     }
 
     fn diagnostics(&self) -> Vec<(String, Real)> {
