@@ -204,9 +204,6 @@ pub struct RelaxedWarmStart {
     heavy: Option<ExtrapolatedWarmStart>,
     /// Heavy islands started from the extrapolation.
     extrapolated: u64,
-    /// Whether the last island came with a pass budget: only then are heavy islands observed
-    /// for the extrapolation (the world's observation carries no budget of its own).
-    budgeted: bool,
 }
 
 impl RelaxedWarmStart {
@@ -300,7 +297,6 @@ impl RelaxedWarmStart {
             mixed: 0,
             heavy,
             extrapolated: 0,
-            budgeted: false,
         })
     }
 
@@ -544,7 +540,6 @@ impl WarmStart for RelaxedWarmStart {
         out: &mut [Impulse],
     ) -> Result<(), WarmStartError> {
         self.last_passes = 0;
-        self.budgeted = ctx.pass_budget.is_some();
         if self.begin(ctx, out)? == Begun::Final {
             return Ok(());
         }
@@ -620,9 +615,8 @@ impl WarmStart for RelaxedWarmStart {
     /// `extrapolate`, needs it). What it is shown as the start used is the sweeps' output, the
     /// start the solver applied; the solved impulses and the report are the solve's.
     fn observe(&mut self, ctx: &WarmStartContext<'_>, seen: &Observation<'_>) {
-        // The observation's context carries no pass budget: the warm start's said whether
-        // there was one.
-        let extrapolates = self.budgeted && self.heavy.is_some() && self.heavy(ctx.problem);
+        // The observation's context carries the warm start's pass budget.
+        let extrapolates = self.extrapolates(ctx);
         match (&mut self.start, self.heavy.as_mut()) {
             (Some(start), _) => start.observe(ctx, seen),
             (None, Some(heavy)) if extrapolates => heavy.observe(ctx, seen),

@@ -856,8 +856,10 @@ fn sor_heavy_alpha_starts_heavy_towers_from_the_extrapolation_under_a_budget() {
                 out.iter()
                     .flat_map(|i| [i.normal.to_bits(), i.tangent.to_bits()]),
             );
-            // The next step carries a tenth more load than this one's solve.
-            let solved = observe(provider, &island, &carried, step, &out);
+            // The next step carries a tenth more load than this one's solve; the solve is
+            // observed under the same budget, as the world observes it.
+            let (solved, report) = solve(&island, &out);
+            provider.observe(&ctx, &Observation::new(&out, &solved, false, &report));
             carried = solved
                 .iter()
                 .map(|i| Some(Impulse::new(1.1 * i.normal, i.tangent)))
