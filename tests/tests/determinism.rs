@@ -1,0 +1,80 @@
+//! Every registered provider, run twice on the same world, gives the same bits, and so do one
+//! and two island and collide threads (providers are called in island order on the stepping
+//! thread, whatever the threads).
+
+use deepcontact_core::{World, WorldSettings, scene};
+use deepcontact_experiments::full_registry;
+use deepcontact_pgs::PgsPositionSolver;
+
+/// The bits of every body's pose and velocity and every contact's impulse after `steps`
+/// steps of a 100-circle pile with `provider`, under `budget`, on `threads` threads (no more
+/// than the cores); the contact points solved in all, and the most islands of a step (from
+/// two, a step's islands are solved side by side on two threads).
+fn run(
+    provider: &str,
+    budget: Option<u32>,
+    threads: usize,
+    steps: usize,
+) -> (Vec<u64>, usize, usize) {
+    let registry = full_registry();
+    let settings = WorldSettings {
+        budget,
+        island_threads: threads,
+        collide_threads: threads,
+        ..WorldSettings::default()
+    };
+    let mut world: World = scene::pile(11, 100).unwrap().build(settings).unwrap();
+    let mut provider = registry.build_provider(provider).unwrap();
+    let mut solver = registry.build_solver("pgs").unwrap();
+    let mut position = PgsPositionSolver::new();
+    let (mut points, mut islands) = (0, 0);
+    for _ in 0..steps {
+        world
+            .step(provider.as_mut(), solver.as_mut(), &mut position)
+            .unwrap();
+        points += world.last_problems().iter().map(|p| p.len()).sum::<usize>();
+        islands = islands.max(world.last_problems().len());
+    }
+    let mut bits = Vec::new();
+    for b in world.bodies() {
+        let (p, v) = (b.position, b.linear_velocity);
+        bits.extend([p.x, p.y, b.angle, v.x, v.y, b.angular_velocity].map(f64::to_bits));
+    }
+    for (_, i) in world.contacts() {
+        bits.extend([i.normal.to_bits(), i.tangent.to_bits()]);
+    }
+    (bits, points, islands)
+}
+
+#[test]
+fn every_provider_gives_the_same_bits_twice_and_on_one_or_two_threads() {
+    let registry = full_registry();
+    let mut ran = 0;
+    for (name, _) in registry.providers() {
+        if registry.build_provider(name).is_err() {
+            // `onnx` and `graph-file` need a model file named on the command line.
+            assert!(
+                name == "onnx" || name == "graph-file",
+                "{name} does not build"
+            );
+            continue;
+        }
+        for budget in [None, Some(8)] {
+            let (first, points, islands) = run(name, budget, 1, 70);
+            assert!(points > 300, "{name}: {points} contact points solved");
+            assert!(islands >= 4, "{name}: at most {islands} islands a step");
+            assert_eq!(
+                first,
+                run(name, budget, 1, 70).0,
+                "{name}, {budget:?}: run twice"
+            );
+            assert_eq!(
+                first,
+                run(name, budget, 2, 70).0,
+                "{name}, {budget:?}: two threads"
+            );
+            ran += 1;
+        }
+    }
+    assert!(ran >= 40, "{ran} runs");
+}
