@@ -66,8 +66,10 @@ impl RandomConfig {
 /// Random warm start ("random" in the thesis): normal impulses uniform in
 /// `[normal_min, normal_max)`, tangent impulses uniform in `[-tangent_max, tangent_max)`.
 ///
-/// The generator is seeded once at construction and advances with every point, so a
-/// world stepped twice with providers built from the same config sees the same values.
+/// The generator is seeded at construction and again by `reset` (which a world calls before
+/// its first step), and advances with every point, so a world stepped with providers built
+/// from the same config, or with one provider used before on another world, sees the same
+/// values.
 ///
 /// ```
 /// use deepcontact_core::{ContactProblem, Impulse, WarmStart, WarmStartContext};
@@ -118,5 +120,10 @@ impl WarmStart for RandomWarmStart {
             *o = Impulse::new(normal, tangent);
         }
         Ok(())
+    }
+
+    /// A new world: the generator starts its stream again from the seed.
+    fn reset(&mut self) {
+        self.rng = PortableRng::new(self.config.seed);
     }
 }
