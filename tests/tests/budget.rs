@@ -216,3 +216,50 @@ fn regression_tail_swept_twice_with_one_pass_offered() {
     let l = ledger("tail", Some(8), 90);
     assert!(!l.spent.is_empty() && l.spent.iter().all(|&s| s == 2));
 }
+
+/// A provider offered no passes (as `best` offers the candidates after its budget ran out)
+/// spends none.
+#[test]
+fn every_provider_offered_no_passes_spends_none() {
+    let registry = full_registry();
+    let mut world = scene::pile(7, 100)
+        .unwrap()
+        .build(WorldSettings::default())
+        .unwrap();
+    let mut solver = registry.build_solver("pgs").unwrap();
+    let mut position = PgsPositionSolver::new();
+    for _ in 0..80 {
+        world
+            .step(
+                &mut deepcontact_core::CarriedWarmStart,
+                solver.as_mut(),
+                &mut position,
+            )
+            .unwrap();
+    }
+    let problems = world.last_problems().to_vec();
+    let k = (0..problems.len())
+        .max_by_key(|&k| problems[k].len())
+        .unwrap();
+    let island = &problems[k];
+    assert!(island.len() > 20, "{} points", island.len());
+    let carried: Vec<Option<Impulse>> = vec![Some(Impulse::new(0.1, 0.0)); island.len()];
+    let mut over = Vec::new();
+    for (name, _) in registry.providers() {
+        if registry.provider_info(name).is_some_and(|i| i.oracle) {
+            continue;
+        }
+        let Ok(mut provider) = registry.build_provider(name) else {
+            continue;
+        };
+        let ctx = WarmStartContext::new(island, &carried, 80, world.settings().dt)
+            .with_world(&world, k, problems.len())
+            .with_pass_budget(0);
+        let mut out = vec![Impulse::ZERO; island.len()];
+        provider.warm_start(&ctx, &mut out).unwrap();
+        if provider.passes_spent() > 0 {
+            over.push(format!("{name} spent {}", provider.passes_spent()));
+        }
+    }
+    assert!(over.is_empty(), "offered none: {over:?}");
+}

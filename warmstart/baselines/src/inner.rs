@@ -104,7 +104,8 @@ impl InnerSolve {
         })
     }
 
-    /// `solve` with the capped settings on the cleared velocity buffer and report.
+    /// `solve` with the capped settings on the cleared velocity buffer and report; nothing
+    /// (no iterations, an empty report) when the cap is 0.
     fn run_with(
         &mut self,
         problem: &ContactProblem,
@@ -116,17 +117,20 @@ impl InnerSolve {
         self.velocities
             .resize(problem.bodies.len(), Velocity::default());
         self.report.clear();
+        if cap == Some(0) {
+            return Ok(());
+        }
         let settings = self.capped(cap);
         solve(&settings, &mut self.velocities, &mut self.report)
             .map_err(|e| WarmStartError::Provider(format!("{what} failed: {e}")))
     }
 
-    /// The inner settings with at most `cap` iterations when a budget caps them (below the
-    /// own cap it wins).
+    /// The inner settings with at most `cap` iterations (≥ 1) when a budget caps them (below
+    /// the own cap it wins).
     fn capped(&self, cap: Option<u32>) -> SolverSettings {
         SolverSettings {
             max_iterations: cap.map_or(self.settings.max_iterations, |c| {
-                self.settings.max_iterations.min(c.max(1))
+                self.settings.max_iterations.min(c)
             }),
             ..self.settings
         }

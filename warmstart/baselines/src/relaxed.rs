@@ -557,10 +557,9 @@ impl WarmStart for RelaxedWarmStart {
         if schedule.is_empty() {
             self.policy_omegas(ctx)?;
         }
-        // Under a budget the start's own passes come out of the sweeps' share.
-        let cap = ctx
-            .pass_budget
-            .map(|b| b.saturating_sub(self.last_passes).max(1));
+        // Under a budget the start's own passes come out of the sweeps' share (none left: no
+        // sweeps).
+        let cap = ctx.pass_budget.map(|b| b.saturating_sub(self.last_passes));
         let mixable = |&cap: &u32| cap >= MIX_MIN_PASSES;
         if let Some(cap) = cap
             .filter(mixable)
