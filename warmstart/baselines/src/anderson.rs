@@ -18,7 +18,7 @@ use deepcontact_core::{
 };
 use deepcontact_pgs::PgsSolver;
 
-use crate::inner::{InnerSolve, in_range};
+use crate::inner::{InnerSolve, in_range, non_negative};
 use crate::rows::in_cone;
 
 /// Parameters of [`AndersonWarmStart`].
@@ -87,14 +87,7 @@ impl AndersonWarmStart {
     pub fn new(config: AndersonConfig) -> Result<Self, SpecError> {
         in_range("anderson", "window", config.window, 1..=Self::MAX_WINDOW)?;
         in_range("anderson", "rounds", config.rounds, 1..=10_000)?;
-        if !(config.tolerance.is_finite() && config.tolerance >= 0.0) {
-            return Err(SpecError::InvalidParameter {
-                spec: "anderson".into(),
-                param: "tolerance".into(),
-                value: config.tolerance.to_string(),
-                reason: "must be finite and >= 0".into(),
-            });
-        }
+        non_negative("anderson", "tolerance", config.tolerance)?;
         if !(config.omega > 0.0 && config.omega < 2.0) {
             return Err(SpecError::InvalidParameter {
                 spec: "anderson".into(),

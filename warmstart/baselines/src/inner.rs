@@ -25,6 +25,19 @@ pub(crate) fn in_range(
     })
 }
 
+/// `value`, `spec`'s parameter `param`, if it is finite and ≥ 0; else the error saying so.
+pub(crate) fn non_negative(spec: &str, param: &str, value: Real) -> Result<Real, SpecError> {
+    if value.is_finite() && value >= 0.0 {
+        return Ok(value);
+    }
+    Err(SpecError::InvalidParameter {
+        spec: spec.into(),
+        param: param.into(),
+        value: value.to_string(),
+        reason: "must be finite and >= 0".into(),
+    })
+}
+
 /// The inner solve's settings and buffers (kept between calls: no allocation once grown).
 #[derive(Debug, Clone, Default)]
 pub(crate) struct InnerSolve {
@@ -43,26 +56,8 @@ impl InnerSolve {
         max: u32,
         tolerance: Real,
     ) -> Result<Self, SpecError> {
-        let invalid = |param: &str, value: String, reason: String| SpecError::InvalidParameter {
-            spec: spec.into(),
-            param: param.into(),
-            value,
-            reason,
-        };
-        if !(1..=max).contains(&iterations) {
-            return Err(invalid(
-                param,
-                iterations.to_string(),
-                format!("must be in 1..={max}"),
-            ));
-        }
-        if !(tolerance.is_finite() && tolerance >= 0.0) {
-            return Err(invalid(
-                "tolerance",
-                tolerance.to_string(),
-                "must be finite and >= 0".into(),
-            ));
-        }
+        in_range(spec, param, iterations, 1..=max)?;
+        non_negative(spec, "tolerance", tolerance)?;
         Ok(Self {
             settings: SolverSettings {
                 max_iterations: iterations,

@@ -34,7 +34,7 @@ use deepcontact_core::{
 };
 use deepcontact_pgs::PgsSolver;
 
-use crate::inner::InnerSolve;
+use crate::inner::{InnerSolve, non_negative};
 use crate::{AndersonConfig, AndersonWarmStart, BudgetSchedules, ExtrapolatedWarmStart, Schedule};
 
 /// The fewest passes an island's share of the budget must hold for the mixed sweeps of
@@ -254,14 +254,7 @@ impl RelaxedWarmStart {
             Self::MAX_SWEEPS,
             config.tolerance,
         )?;
-        if !(config.heavy_alpha.is_finite() && config.heavy_alpha >= 0.0) {
-            return Err(SpecError::InvalidParameter {
-                spec: "sor".into(),
-                param: "heavy_alpha".into(),
-                value: config.heavy_alpha.to_string(),
-                reason: "must be finite and >= 0".into(),
-            });
-        }
+        non_negative("sor", "heavy_alpha", config.heavy_alpha)?;
         let heavy = (config.heavy_alpha > 0.0)
             .then(|| ExtrapolatedWarmStart::new(config.heavy_alpha))
             .transpose()?;
