@@ -135,6 +135,23 @@ fn observe(
     solved
 }
 
+/// The first island of `scene` after 60 steps of carried impulses and PGS (under `budget`
+/// passes): a tower at rest.
+fn resting_island(scene: deepcontact_core::scene::Scene, budget: Option<u32>) -> ContactProblem {
+    let settings = deepcontact_core::WorldSettings {
+        budget,
+        ..deepcontact_core::WorldSettings::default()
+    };
+    let mut world = scene.build(settings).unwrap();
+    let (mut solver, mut position) = (PgsSolver::new(), deepcontact_pgs::PgsPositionSolver::new());
+    for _ in 0..60 {
+        world
+            .step(&mut CarriedWarmStart, &mut solver, &mut position)
+            .unwrap();
+    }
+    world.last_problems()[0].clone()
+}
+
 #[test]
 fn shock_propagation_finds_the_loads_of_a_column_from_nothing() {
     let problem = column(6);
@@ -723,19 +740,7 @@ fn sor_mix_below_mixes_the_towers_under_a_budget_and_spares_the_heavy_box() {
     // The resting towers' islands: every point in a box face. The even tower's start is
     // Anderson's; under the heavy box the island keeps the relaxed sweeps.
     let resting = |heavy: bool| {
-        let mut world = tower(heavy)
-            .build(WorldSettings {
-                budget: Some(8),
-                ..WorldSettings::default()
-            })
-            .unwrap();
-        let (mut solver, mut position) = (PgsSolver::new(), PgsPositionSolver::new());
-        for _ in 0..60 {
-            world
-                .step(&mut CarriedWarmStart, &mut solver, &mut position)
-                .unwrap();
-        }
-        let island = world.last_problems()[0].clone();
+        let island = resting_island(tower(heavy), Some(8));
         assert!(
             island.manifolds.iter().all(|&(a, b)| b == a + 2),
             "box faces only"
@@ -835,14 +840,7 @@ fn sor_heavy_alpha_starts_heavy_towers_from_the_extrapolation_under_a_budget() {
             .unwrap()
     };
     // The resting island, two steps of starts and solves.
-    let mut world = tower().build(WorldSettings::default()).unwrap();
-    let (mut solver, mut position) = (PgsSolver::new(), PgsPositionSolver::new());
-    for _ in 0..60 {
-        world
-            .step(&mut CarriedWarmStart, &mut solver, &mut position)
-            .unwrap();
-    }
-    let island = world.last_problems()[0].clone();
+    let island = resting_island(tower(), None);
     assert_eq!(island.bodies.iter().filter(|b| b.inv_mass > 0.0).count(), 5);
     let starts = |provider: &mut dyn WarmStart| {
         let mut carried = vec![None; island.len()];
