@@ -53,8 +53,8 @@ pub use registry::{ProviderInfo, Registry, Spec, SpecError};
 pub use report::{SolveReport, StepReport};
 pub use shape::ShapeDesc;
 pub use solver::{
-    CircleContact, IslandSolve, PositionReport, PositionSettings, PositionSolver, ResidualNorm,
-    SolverSettings, VelocitySolver,
+    CircleContact, IslandSolve, PassCost, PositionReport, PositionSettings, PositionSolver,
+    ResidualNorm, SolverSettings, VelocitySolver,
 };
 pub use warm_start::{
     CarriedWarmStart, GuardPolicy, Observation, WarmStart, WarmStartContext, WarmStartError,

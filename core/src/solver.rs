@@ -185,6 +185,51 @@ pub fn begin_solve(
     check_solve_buffers(problem, impulses, velocities)
 }
 
+/// What a solve costs in PGS passes ([`VelocitySolver::pass_cost`]): `set_up` once per solve
+/// that iterates at all, then `per_iteration` an iteration.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PassCost {
+    /// Passes the solve's set-up weighs (assembly, analysis), paid when it runs an iteration.
+    pub set_up: u32,
+    /// Passes one iteration weighs (≥ 1).
+    pub per_iteration: u32,
+}
+
+impl Default for PassCost {
+    /// [`PassCost::ONE_PER_ITERATION`].
+    fn default() -> Self {
+        Self::ONE_PER_ITERATION
+    }
+}
+
+impl PassCost {
+    /// PGS's cost: no set-up counted, one pass an iteration.
+    pub const ONE_PER_ITERATION: Self = Self {
+        set_up: 0,
+        per_iteration: 1,
+    };
+
+    /// Passes of a solve that ran `iterations` iterations (0 for none), saturating.
+    pub fn passes(&self, iterations: u32) -> u32 {
+        if iterations == 0 {
+            return 0;
+        }
+        self.per_iteration
+            .max(1)
+            .saturating_mul(iterations)
+            .saturating_add(self.set_up)
+    }
+
+    /// The most iterations, up to `cap`, whose [`Self::passes`] fit in `budget` (0 when
+    /// not even one does).
+    pub fn iterations_within(&self, budget: u32, cap: u32) -> u32 {
+        let per = self.per_iteration.max(1);
+        budget
+            .checked_sub(self.set_up)
+            .map_or(0, |left| (left / per).min(cap))
+    }
+}
+
 /// Solves the velocity-level contact problem of one island.
 ///
 /// The solver starts from `impulses` (the warm start, one per point), applies them to the
@@ -281,6 +326,17 @@ pub trait VelocitySolver: Send {
         true
     }
 
+    /// What a solve of `problem` costs in PGS passes (sweeps of every row of the island), the
+    /// unit in which a pass budget ([`crate::WarmStartContext::pass_budget`]) counts a
+    /// provider's inner solve (default [`PassCost::ONE_PER_ITERATION`]: an iteration is one
+    /// pass). Counted from the problem's structure alone, so that a budget decides the same
+    /// way on every machine and for every start. A solver whose iteration is other work (a
+    /// factorisation, an assembled matrix) says what it weighs here.
+    fn pass_cost(&mut self, problem: &ContactProblem) -> Result<PassCost, CoreError> {
+        let _ = problem;
+        Ok(PassCost::ONE_PER_ITERATION)
+    }
+
     /// Whether the solver moves its islands' bodies itself (default `false`). When `true`,
     /// the world solves each island with [`Self::solve_with_positions`], moves the island's
     /// dynamic bodies by the displacements it returns (instead of `dt ×` their velocity) and
@@ -345,6 +401,9 @@ impl<S: VelocitySolver + ?Sized> VelocitySolver for Box<S> {
     }
     fn projects_start(&self) -> bool {
         (**self).projects_start()
+    }
+    fn pass_cost(&mut self, problem: &ContactProblem) -> Result<PassCost, CoreError> {
+        (**self).pass_cost(problem)
     }
     fn owns_positions(&self) -> bool {
         (**self).owns_positions()
@@ -531,5 +590,41 @@ impl<S: PositionSolver + ?Sized> PositionSolver for Box<S> {
     }
     fn threads_for(&self, points: usize) -> usize {
         (**self).threads_for(points)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::PassCost;
+
+    #[test]
+    fn a_solve_weighs_its_set_up_once_and_its_iterations_each() {
+        let cost = PassCost {
+            set_up: 60,
+            per_iteration: 25,
+        };
+        assert_eq!(cost.passes(0), 0);
+        assert_eq!(cost.passes(1), 85);
+        assert_eq!(cost.passes(3), 135);
+        assert_eq!(cost.iterations_within(84, 20), 0);
+        assert_eq!(cost.iterations_within(85, 20), 1);
+        assert_eq!(cost.iterations_within(134, 20), 2);
+        assert_eq!(cost.iterations_within(10_000, 20), 20);
+        assert_eq!(cost.iterations_within(59, 20), 0);
+    }
+
+    #[test]
+    fn pgs_cost_is_one_pass_an_iteration() {
+        let cost = PassCost::default();
+        assert_eq!(cost, PassCost::ONE_PER_ITERATION);
+        assert_eq!(cost.passes(7), 7);
+        assert_eq!(cost.iterations_within(7, 300), 7);
+        assert_eq!(cost.iterations_within(0, 300), 0);
+        let huge = PassCost {
+            set_up: u32::MAX,
+            per_iteration: 0,
+        };
+        assert_eq!(huge.passes(5), u32::MAX, "saturates");
+        assert_eq!(huge.iterations_within(u32::MAX, 3), 0);
     }
 }

@@ -152,6 +152,24 @@ fn regression_krylov_spent_more_passes_than_it_was_offered() {
     assert_within(&l, "krylov", 8);
 }
 
+/// `presolve` counted each Newton iteration as one pass, though an iteration (a
+/// factorisation of the island's Newton matrix) and the solve's set-up weigh tens of passes,
+/// so under a budget of 8 it ran seven Newton iterations as seven passes.
+#[test]
+fn regression_presolve_counted_a_newton_iteration_as_one_pass() {
+    let l = ledger("presolve", Some(8), 90);
+    assert!(l.spent.len() > 100, "{} islands solved", l.spent.len());
+    // Not even one iteration fits in 7 passes: the solver gets the whole budget.
+    assert!(l.spent.iter().all(|&s| s == 0), "{:?}", &l.spent[..8]);
+    assert_within(&l, "presolve", 8);
+    // With room for a few iterations it runs them, each weighing more than a pass.
+    let l = ledger("presolve", Some(1000), 90);
+    let ran: Vec<u32> = l.spent.iter().copied().filter(|&s| s > 0).collect();
+    assert!(ran.len() > 50, "{} islands with a Newton solve", ran.len());
+    assert!(ran.iter().all(|&s| s > 8), "{:?}", &ran[..8]);
+    assert_within(&l, "presolve", 1000);
+}
+
 /// Oracles (which solve the island to build their start) are left out: they are references,
 /// not providers a budget judges. So are the providers that read a model file named on the
 /// command line (`onnx`, `graph-file`): no such file is in the repository.

@@ -420,6 +420,17 @@ impl BlockLu {
         true
     }
 
+    /// Blocks of the filled pattern of the last analysis (the factors' storage: a triangular
+    /// solve visits each once).
+    pub(crate) fn filled_blocks(&self) -> usize {
+        self.col.len()
+    }
+
+    /// Block updates `t ← t − l u` of one factorisation on the last analysis' pattern.
+    pub(crate) fn updates(&self) -> usize {
+        self.targets.len()
+    }
+
     /// Solves `A x = rhs` in place with the last factorisation.
     pub(crate) fn solve(&mut self, rhs: &mut [Real]) {
         let np = self.order.len();

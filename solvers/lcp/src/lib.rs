@@ -53,7 +53,7 @@ pub use exact::{
     ContactState, EXACT_MAX_POINTS, EXACT_REGULARIZATION, ExactSolution, Violation, solve_exact,
     violation,
 };
-pub use newton::{NewtonSettings, NewtonSolver, NewtonStats, RETRY_REGULARIZATION};
+pub use newton::{NewtonSettings, NewtonSolver, NewtonStats, NewtonWork, RETRY_REGULARIZATION};
 pub use psor::{PsorSettings, PsorSolver};
 pub use registry::register;
 pub use rescue::{

@@ -2,8 +2,8 @@
 //! solver's stop rule (validated), its velocity buffer and its last report.
 
 use deepcontact_core::{
-    ContactProblem, CoreError, Impulse, Real, SolveReport, SolverSettings, SpecError, Velocity,
-    VelocitySolver, WarmStartError,
+    ContactProblem, CoreError, Impulse, PassCost, Real, SolveReport, SolverSettings, SpecError,
+    Velocity, VelocitySolver, WarmStartError,
 };
 use deepcontact_pgs::PgsSolver;
 
@@ -44,6 +44,8 @@ pub(crate) struct InnerSolve {
     settings: SolverSettings,
     velocities: Vec<Velocity>,
     report: SolveReport,
+    /// What an iteration of the last solve weighed in passes.
+    cost: PassCost,
 }
 
 impl InnerSolve {
@@ -68,9 +70,10 @@ impl InnerSolve {
         })
     }
 
-    /// Solves `problem` with `solver` from `impulses` (in place), at most `cap` iterations
-    /// when a budget caps them (`ctx.pass_budget`; below the own cap it wins); `what` names
-    /// the solve in the error. The iterations run are [`Self::passes`].
+    /// Solves `problem` with `solver` from `impulses` (in place); under a pass budget `cap`
+    /// (`ctx.pass_budget`) only the iterations whose weight in passes
+    /// ([`VelocitySolver::pass_cost`]) fits in it, none when not even one does; `what` names
+    /// the solve in the error. What it weighed is [`Self::passes`].
     pub(crate) fn run(
         &mut self,
         solver: &mut dyn VelocitySolver,
@@ -79,7 +82,8 @@ impl InnerSolve {
         what: &str,
         cap: Option<u32>,
     ) -> Result<(), WarmStartError> {
-        self.run_with(problem, what, cap, |settings, velocities, report| {
+        let cost = solver.pass_cost(problem).map_err(|e| failed(what, &e))?;
+        self.run_with(problem, what, cap, cost, |settings, velocities, report| {
             solver.solve(problem, settings, impulses, velocities, report)
         })
     }
@@ -94,41 +98,38 @@ impl InnerSolve {
         what: &str,
         cap: Option<u32>,
     ) -> Result<(), WarmStartError> {
-        self.run_with(problem, what, cap, |settings, velocities, report| {
+        let cost = PassCost::ONE_PER_ITERATION;
+        self.run_with(problem, what, cap, cost, |settings, velocities, report| {
             solver.solve_again(problem, settings, impulses, velocities, report)
         })
     }
 
-    /// `solve` with the capped settings on the cleared velocity buffer and report; nothing
-    /// (no iterations, an empty report) when the cap is 0.
+    /// `solve` with at most the iterations of the own cap that `cost` fits in the budget
+    /// `cap`, on the cleared velocity buffer and report; nothing (no iterations, an empty
+    /// report) when none fits.
     fn run_with(
         &mut self,
         problem: &ContactProblem,
         what: &str,
         cap: Option<u32>,
+        cost: PassCost,
         solve: impl FnOnce(&SolverSettings, &mut [Velocity], &mut SolveReport) -> Result<(), CoreError>,
     ) -> Result<(), WarmStartError> {
         self.velocities.clear();
         self.velocities
             .resize(problem.bodies.len(), Velocity::default());
         self.report.clear();
-        if cap == Some(0) {
+        self.cost = cost;
+        let own = self.settings.max_iterations;
+        let iterations = cap.map_or(own, |budget| cost.iterations_within(budget, own));
+        if iterations == 0 {
             return Ok(());
         }
-        let settings = self.capped(cap);
-        solve(&settings, &mut self.velocities, &mut self.report)
-            .map_err(|e| WarmStartError::Provider(format!("{what} failed: {e}")))
-    }
-
-    /// The inner settings with at most `cap` iterations (≥ 1) when a budget caps them (below
-    /// the own cap it wins).
-    fn capped(&self, cap: Option<u32>) -> SolverSettings {
-        SolverSettings {
-            max_iterations: cap.map_or(self.settings.max_iterations, |c| {
-                self.settings.max_iterations.min(c)
-            }),
+        let settings = SolverSettings {
+            max_iterations: iterations,
             ..self.settings
-        }
+        };
+        solve(&settings, &mut self.velocities, &mut self.report).map_err(|e| failed(what, &e))
     }
 
     /// Forgets the last solve's report (an island with nothing to solve).
@@ -136,13 +137,19 @@ impl InnerSolve {
         self.report.clear();
     }
 
-    /// Iterations of the last solve (0 before the first).
+    /// Passes the last solve weighed: its iterations at the solver's [`PassCost`] (0 before
+    /// the first).
     pub(crate) fn passes(&self) -> u32 {
-        self.report.iterations
+        self.cost.passes(self.report.iterations)
     }
 
     /// The report of the last solve.
     pub(crate) fn report(&self) -> &SolveReport {
         &self.report
     }
+}
+
+/// The provider error for a failed inner solve named `what`.
+fn failed(what: &str, e: &CoreError) -> WarmStartError {
+    WarmStartError::Provider(format!("{what} failed: {e}"))
 }

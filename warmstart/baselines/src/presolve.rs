@@ -38,7 +38,8 @@ impl Default for PresolveConfig {
 /// Carried impulses (zeros for new points) refined by at most `iterations` iterations of an
 /// inner solver, typically the semismooth Newton method of deepcontact-lcp. Unlike `copy` it
 /// never sees a solution it did not compute within its budget: its cost is the inner
-/// solver's iterations, counted as provider time. Buffers are kept between calls.
+/// solver's iterations, counted as provider time and, under a pass budget, at the weight the
+/// solver states ([`VelocitySolver::pass_cost`]). Buffers are kept between calls.
 ///
 /// ```
 /// use deepcontact_core::WarmStart;
@@ -120,7 +121,9 @@ impl WarmStart for PresolveWarmStart {
             .run(solver, ctx.problem, out, "presolve", ctx.pass_budget)
     }
 
-    /// The inner solve's iterations on the last island (0 on an empty one).
+    /// What the inner solve weighed on the last island, in passes
+    /// ([`VelocitySolver::pass_cost`]: a Newton iteration weighs tens; 0 on an empty island or
+    /// when not one iteration fitted the budget).
     fn passes_spent(&self) -> u32 {
         self.inner.passes()
     }
