@@ -16,6 +16,7 @@
 //! and grows the regularisation when it is not accurate.
 
 use deepcontact_core::math::Real;
+use deepcontact_core::{ContactProblem, CoreError};
 
 use crate::LcpError;
 use crate::assembly::Delassus;
@@ -78,6 +79,8 @@ pub(crate) struct BlockLu {
     pub(crate) analyses: u64,
     pub(crate) reuses: u64,
     // Analysis scratch.
+    body_ptr: Vec<usize>,
+    body_points: Vec<u32>,
     adj_ptr: Vec<usize>,
     adj: Vec<u32>,
     upper_ptr: Vec<usize>,
@@ -112,37 +115,134 @@ impl std::fmt::Debug for AmdScratch {
 /// No entry of a list.
 const NONE: u32 = u32::MAX;
 
+/// The error for a system whose `count` `what` do not fit the 32-bit block indices.
+fn too_large(rows: usize, what: &str, count: usize) -> LcpError {
+    LcpError::Factorization {
+        rows,
+        reason: format!("{count} {what}: block indices are 32-bit"),
+    }
+}
+
+/// [`too_large`] for a system of `points` points and `rows` rows, when it is.
+fn check_points(points: usize, rows: usize) -> Result<(), LcpError> {
+    if points >= NONE as usize {
+        return Err(too_large(rows, "points", points));
+    }
+    Ok(())
+}
+
 impl BlockLu {
     /// Works out the order, the filled pattern and the update lists of `del`'s block pattern,
     /// and copies `W` into that pattern.
     pub(crate) fn analyse(&mut self, del: &Delassus) -> Result<(), LcpError> {
-        let too_large = |what: &str, count: usize| LcpError::Factorization {
-            rows: del.rows(),
-            reason: format!("{count} {what}: block indices are 32-bit"),
-        };
-        if del.points() >= NONE as usize {
-            return Err(too_large("points", del.points()));
-        }
+        check_points(del.points(), del.rows())?;
         self.point_graph(del);
+        self.analyse_graph(del.rows())?;
+        self.load_w_values(del);
+        Ok(())
+    }
+
+    /// [`Self::analyse`] from `problem`'s structure alone, without `W`'s values: a point is
+    /// adjacent to itself and to every point that shares a movable body with it, which is the
+    /// pattern of `W` assembled sparse. What [`Self::filled_blocks`] and [`Self::updates`]
+    /// count then is the factorisation of that pattern, and an [`Self::analyse`] of the same
+    /// graph reuses the work. Returns the blocks of the pattern.
+    pub(crate) fn analyse_structure(
+        &mut self,
+        problem: &ContactProblem,
+    ) -> Result<usize, LcpError> {
+        let points = problem.points.len();
+        check_points(points, 2 * points)?;
+        self.structural_graph(problem)?;
+        self.analyse_graph(2 * points)?;
+        Ok(self.adj.len())
+    }
+
+    /// The order, filled pattern and update lists of the point graph in `adj_ptr` / `adj`,
+    /// kept from the last call when the graph is the same.
+    fn analyse_graph(&mut self, rows: usize) -> Result<(), LcpError> {
         // The analysis is a function of the point graph alone: a settled pile's islands
         // keep theirs from step to step.
         if self.adj_ptr == self.analysed_ptr && self.adj == self.analysed {
             self.reuses += 1;
-        } else {
-            self.analysed_ptr.clear();
-            self.analysed.clear();
-            self.fill_reducing_order()?;
-            self.symbolic_fill();
-            self.block_rows();
-            if self.col.len() >= NONE as usize {
-                return Err(too_large("blocks after fill", self.col.len()));
-            }
-            self.update_targets()?;
-            self.analysed_ptr.extend_from_slice(&self.adj_ptr);
-            self.analysed.extend_from_slice(&self.adj);
-            self.analyses += 1;
+            return Ok(());
         }
-        self.load_w_values(del);
+        self.analysed_ptr.clear();
+        self.analysed.clear();
+        self.fill_reducing_order()?;
+        self.symbolic_fill();
+        self.block_rows();
+        if self.col.len() >= NONE as usize {
+            return Err(too_large(rows, "blocks after fill", self.col.len()));
+        }
+        self.update_targets()?;
+        self.analysed_ptr.extend_from_slice(&self.adj_ptr);
+        self.analysed.extend_from_slice(&self.adj);
+        self.analyses += 1;
+        Ok(())
+    }
+
+    /// `adj_ptr` / `adj` from `problem`'s structure: each point's own index and those of the
+    /// points touching its movable bodies, ascending and without repeats.
+    fn structural_graph(&mut self, problem: &ContactProblem) -> Result<(), LcpError> {
+        let nb = problem.bodies.len();
+        let movable = |b: u32| {
+            let body = &problem.bodies[b as usize];
+            body.inv_mass != 0.0 || body.inv_inertia != 0.0
+        };
+        self.body_ptr.clear();
+        self.body_ptr.resize(nb + 1, 0);
+        for (i, p) in problem.points.iter().enumerate() {
+            if p.body_a as usize >= nb || p.body_b as usize >= nb {
+                return Err(LcpError::InvalidProblem(CoreError::InvalidProblem(
+                    format!("point {i} has bad body indices"),
+                )));
+            }
+            for b in [p.body_a, p.body_b] {
+                if movable(b) {
+                    self.body_ptr[b as usize + 1] += 1;
+                }
+            }
+        }
+        for k in 0..nb {
+            self.body_ptr[k + 1] += self.body_ptr[k];
+        }
+        self.body_points.clear();
+        self.body_points.resize(self.body_ptr[nb], 0);
+        self.cursor.clear();
+        self.cursor.extend_from_slice(&self.body_ptr[..nb]);
+        for (i, p) in problem.points.iter().enumerate() {
+            for b in [p.body_a, p.body_b] {
+                if movable(b) {
+                    let slot = &mut self.cursor[b as usize];
+                    self.body_points[*slot] = i as u32;
+                    *slot += 1;
+                }
+            }
+        }
+        self.adj_ptr.clear();
+        self.adj.clear();
+        self.adj_ptr.push(0);
+        for (j, p) in problem.points.iter().enumerate() {
+            let start = self.adj.len();
+            self.adj.push(j as u32);
+            for b in [p.body_a, p.body_b] {
+                if movable(b) {
+                    let (from, to) = (self.body_ptr[b as usize], self.body_ptr[b as usize + 1]);
+                    self.adj.extend_from_slice(&self.body_points[from..to]);
+                }
+            }
+            self.adj[start..].sort_unstable();
+            let mut kept = start;
+            for r in start..self.adj.len() {
+                if r == start || self.adj[r] != self.adj[kept - 1] {
+                    self.adj[kept] = self.adj[r];
+                    kept += 1;
+                }
+            }
+            self.adj.truncate(kept);
+            self.adj_ptr.push(self.adj.len());
+        }
         Ok(())
     }
 
@@ -686,6 +786,40 @@ mod tests {
         del.assemble(&other, AssemblyMode::Sparse, 0).unwrap();
         lu.analyse(&del).unwrap();
         assert_eq!((lu.analyses, lu.reuses), (2, 1));
+    }
+
+    /// The pattern worked out from the problem's structure is the pattern of `W` assembled
+    /// sparse: the same blocks and factors, and an analysis of the assembled `W` after it is
+    /// a reuse; an island with a static body among its points included.
+    #[test]
+    fn the_structural_pattern_is_the_assembled_one() {
+        for (seed, bodies, points) in [(11, 50, 100), (3, 2, 1), (21, 120, 260)] {
+            let problem = random_island(seed, bodies, points);
+            let mut lu = BlockLu::default();
+            let blocks = lu.analyse_structure(&problem).unwrap();
+            let (filled, updates) = (lu.filled_blocks(), lu.updates());
+            let mut del = Delassus::new();
+            del.assemble(&problem, AssemblyMode::Sparse, 0).unwrap();
+            assert_eq!(4 * blocks, del.nnz(), "seed {seed}");
+            lu.analyse(&del).unwrap();
+            assert_eq!((lu.analyses, lu.reuses), (1, 1), "seed {seed}");
+            let mut fresh = BlockLu::default();
+            fresh.analyse(&del).unwrap();
+            assert_eq!((fresh.filled_blocks(), fresh.updates()), (filled, updates));
+            assert!(updates > 0 || points < 3, "seed {seed}: nothing eliminated");
+        }
+    }
+
+    /// A point naming a body the problem does not have is an error, not a panic.
+    #[test]
+    fn the_structural_pattern_rejects_bad_body_indices() {
+        let mut problem = random_island(5, 10, 20);
+        problem.points[3].body_b = 99;
+        let mut lu = BlockLu::default();
+        assert!(matches!(
+            lu.analyse_structure(&problem),
+            Err(LcpError::InvalidProblem(_))
+        ));
     }
 
     /// A singular pivot block (a free row whose diagonal is zero on an isolated point) is

@@ -430,19 +430,25 @@ impl NewtonSolver {
         Ok(reg)
     }
 
-    /// The structure of one iteration on `problem` (assembles and analyses it; a solve of
-    /// the same contact graph after it reuses the analysis).
+    /// The structure of one iteration on `problem`, from the points and the bodies they touch
+    /// (without assembling `W`; the analysis of the factors is kept, and a solve of the same
+    /// contact graph after it reuses it).
     pub fn work(&mut self, problem: &ContactProblem) -> Result<NewtonWork, LcpError> {
-        self.set_up(problem)?;
+        let blocks = self.lu.analyse_structure(problem)?;
+        let rows = 2 * problem.points.len();
+        let dense = self
+            .settings
+            .assembly
+            .is_dense_for(rows, self.settings.dense_threshold);
         Ok(NewtonWork {
-            points: self.delassus.points(),
+            points: problem.points.len(),
             paired_points: problem
                 .manifolds
                 .iter()
                 .filter(|&&(start, end)| end - start == 2)
                 .count()
                 * 2,
-            w_entries: self.delassus.nnz(),
+            w_entries: if dense { rows * rows } else { 4 * blocks },
             filled_blocks: self.lu.filled_blocks(),
             updates: self.lu.updates(),
         })
@@ -875,8 +881,8 @@ impl VelocitySolver for NewtonSolver {
         Some(Box::new(NewtonSolver::with_settings(self.settings)))
     }
 
-    /// [`NewtonWork::pass_cost`] of `problem` (assembles and analyses it; the solve after it
-    /// reuses the analysis).
+    /// [`NewtonWork::pass_cost`] of `problem` (from its structure; the solve after it reuses
+    /// the analysis).
     fn pass_cost(&mut self, problem: &ContactProblem) -> Result<PassCost, CoreError> {
         self.work(problem)
             .map(|w| w.pass_cost())
