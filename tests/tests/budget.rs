@@ -168,6 +168,12 @@ fn regression_presolve_counted_a_newton_iteration_as_one_pass() {
     assert!(ran.len() > 50, "{} islands with a Newton solve", ran.len());
     assert!(ran.iter().all(|&s| s > 8), "{:?}", &ran[..8]);
     assert_within(&l, "presolve", 1000);
+    // A PSOR sweep on the assembled `W`, and its assembly, weigh more than a pass too.
+    let l = ledger("presolve:solver=psor", Some(8), 90);
+    assert!(l.spent.iter().all(|&s| s == 0), "{:?}", &l.spent[..8]);
+    let l = ledger("presolve:solver=psor", Some(200), 90);
+    assert!(l.spent.iter().any(|&s| s > 0), "no PSOR solve ran");
+    assert_within(&l, "presolve:solver=psor", 200);
 }
 
 /// Oracles (which solve the island to build their start) are left out: they are references,

@@ -15,11 +15,12 @@
 //! makes [`BlockLu::factor`] return `false`; the Newton solver checks every solution's residual
 //! and grows the regularisation when it is not accurate.
 
+use deepcontact_core::ContactProblem;
 use deepcontact_core::math::Real;
-use deepcontact_core::{ContactProblem, CoreError};
 
 use crate::LcpError;
 use crate::assembly::Delassus;
+use crate::point_graph::PointGraph;
 
 /// A 2×2 block, row-major: `[a00, a01, a10, a11]`.
 type Block = [Real; 4];
@@ -71,18 +72,16 @@ pub(crate) struct BlockLu {
     inv_diag: Vec<Block>,
     /// Solve scratch, in elimination order.
     y: Vec<[Real; 2]>,
-    /// The point graph the current analysis was made for (`adj_ptr` / `adj` of that call):
+    /// The point graph the current analysis was made for (`graph` at that call):
     /// a problem with the same graph reuses the whole analysis.
     analysed_ptr: Vec<usize>,
     analysed: Vec<u32>,
     /// Analyses made and reused (for tests and diagnostics).
     pub(crate) analyses: u64,
     pub(crate) reuses: u64,
+    /// The point graph being analysed.
+    graph: PointGraph,
     // Analysis scratch.
-    body_ptr: Vec<usize>,
-    body_points: Vec<u32>,
-    adj_ptr: Vec<usize>,
-    adj: Vec<u32>,
     upper_ptr: Vec<usize>,
     upper: Vec<u32>,
     first_child: Vec<u32>,
@@ -153,17 +152,17 @@ impl BlockLu {
     ) -> Result<usize, LcpError> {
         let points = problem.points.len();
         check_points(points, 2 * points)?;
-        self.structural_graph(problem)?;
+        self.graph.of_problem(problem)?;
         self.analyse_graph(2 * points)?;
-        Ok(self.adj.len())
+        Ok(self.graph.blocks())
     }
 
-    /// The order, filled pattern and update lists of the point graph in `adj_ptr` / `adj`,
+    /// The order, filled pattern and update lists of the point graph in `graph`,
     /// kept from the last call when the graph is the same.
     fn analyse_graph(&mut self, rows: usize) -> Result<(), LcpError> {
         // The analysis is a function of the point graph alone: a settled pile's islands
         // keep theirs from step to step.
-        if self.adj_ptr == self.analysed_ptr && self.adj == self.analysed {
+        if self.graph.ptr == self.analysed_ptr && self.graph.adj == self.analysed {
             self.reuses += 1;
             return Ok(());
         }
@@ -176,92 +175,28 @@ impl BlockLu {
             return Err(too_large(rows, "blocks after fill", self.col.len()));
         }
         self.update_targets()?;
-        self.analysed_ptr.extend_from_slice(&self.adj_ptr);
-        self.analysed.extend_from_slice(&self.adj);
+        self.analysed_ptr.extend_from_slice(&self.graph.ptr);
+        self.analysed.extend_from_slice(&self.graph.adj);
         self.analyses += 1;
         Ok(())
     }
 
-    /// `adj_ptr` / `adj` from `problem`'s structure: each point's own index and those of the
-    /// points touching its movable bodies, ascending and without repeats.
-    fn structural_graph(&mut self, problem: &ContactProblem) -> Result<(), LcpError> {
-        let nb = problem.bodies.len();
-        let movable = |b: u32| {
-            let body = &problem.bodies[b as usize];
-            body.inv_mass != 0.0 || body.inv_inertia != 0.0
-        };
-        self.body_ptr.clear();
-        self.body_ptr.resize(nb + 1, 0);
-        for (i, p) in problem.points.iter().enumerate() {
-            if p.body_a as usize >= nb || p.body_b as usize >= nb {
-                return Err(LcpError::InvalidProblem(CoreError::InvalidProblem(
-                    format!("point {i} has bad body indices"),
-                )));
-            }
-            for b in [p.body_a, p.body_b] {
-                if movable(b) {
-                    self.body_ptr[b as usize + 1] += 1;
-                }
-            }
-        }
-        for k in 0..nb {
-            self.body_ptr[k + 1] += self.body_ptr[k];
-        }
-        self.body_points.clear();
-        self.body_points.resize(self.body_ptr[nb], 0);
-        self.cursor.clear();
-        self.cursor.extend_from_slice(&self.body_ptr[..nb]);
-        for (i, p) in problem.points.iter().enumerate() {
-            for b in [p.body_a, p.body_b] {
-                if movable(b) {
-                    let slot = &mut self.cursor[b as usize];
-                    self.body_points[*slot] = i as u32;
-                    *slot += 1;
-                }
-            }
-        }
-        self.adj_ptr.clear();
-        self.adj.clear();
-        self.adj_ptr.push(0);
-        for (j, p) in problem.points.iter().enumerate() {
-            let start = self.adj.len();
-            self.adj.push(j as u32);
-            for b in [p.body_a, p.body_b] {
-                if movable(b) {
-                    let (from, to) = (self.body_ptr[b as usize], self.body_ptr[b as usize + 1]);
-                    self.adj.extend_from_slice(&self.body_points[from..to]);
-                }
-            }
-            self.adj[start..].sort_unstable();
-            let mut kept = start;
-            for r in start..self.adj.len() {
-                if r == start || self.adj[r] != self.adj[kept - 1] {
-                    self.adj[kept] = self.adj[r];
-                    kept += 1;
-                }
-            }
-            self.adj.truncate(kept);
-            self.adj_ptr.push(self.adj.len());
-        }
-        Ok(())
-    }
-
     /// The point graph of `W` (a point and another are adjacent when their block is
-    /// non-zero; every point is adjacent to itself) as `adj_ptr` / `adj`.
+    /// non-zero; every point is adjacent to itself) into `graph`.
     fn point_graph(&mut self, del: &Delassus) {
         let np = del.points();
-        self.adj_ptr.clear();
-        self.adj.clear();
-        self.adj_ptr.push(0);
+        self.graph.ptr.clear();
+        self.graph.adj.clear();
+        self.graph.ptr.push(0);
         for j in 0..np {
-            del.for_each_block_in_column(j, |i| self.adj.push(i as u32));
-            self.adj_ptr.push(self.adj.len());
+            del.for_each_block_in_column(j, |i| self.graph.adj.push(i as u32));
+            self.graph.ptr.push(self.graph.adj.len());
         }
     }
 
     /// `order` / `pos`: AMD on the point graph (natural order without the `sparse` feature).
     fn fill_reducing_order(&mut self) -> Result<(), LcpError> {
-        let np = self.adj_ptr.len() - 1;
+        let np = self.graph.ptr.len() - 1;
         self.order.clear();
         self.pos.clear();
         #[cfg(feature = "sparse")]
@@ -283,9 +218,9 @@ impl BlockLu {
         use faer::sparse::linalg::amd;
         let a = &mut self.amd;
         a.col_ptr.clear();
-        a.col_ptr.extend(self.adj_ptr.iter().copied());
+        a.col_ptr.extend(self.graph.ptr.iter().copied());
         a.row_idx.clear();
-        a.row_idx.extend(self.adj.iter().map(|&i| i as usize));
+        a.row_idx.extend(self.graph.adj.iter().map(|&i| i as usize));
         a.perm.clear();
         a.perm.resize(np, 0);
         a.perm_inv.clear();
@@ -337,7 +272,7 @@ impl BlockLu {
             let start = self.upper.len();
             self.mark[k] = k as u32;
             let point = self.order[k] as usize;
-            for &i in &self.adj[self.adj_ptr[point]..self.adj_ptr[point + 1]] {
+            for &i in &self.graph.adj[self.graph.ptr[point]..self.graph.ptr[point + 1]] {
                 let p = self.pos[i as usize];
                 if p as usize > k && self.mark[p as usize] != k as u32 {
                     self.mark[p as usize] = k as u32;

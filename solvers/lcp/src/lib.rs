@@ -22,6 +22,9 @@
 //!   when its natural residual is lower. Islands PGS settles keep its bits.
 //! * [`solve_exact`] — enumeration of contact states for a few points, the oracle of the
 //!   tests, and [`violation`], a checker of the complementarity conditions.
+//! * [`NewtonWork`], [`PsorWork`] — what a Newton or PSOR solve weighs in PGS passes, counted
+//!   from the island's structure, for pass budgets
+//!   ([`deepcontact_core::VelocitySolver::pass_cost`]).
 //!
 //! `psor` and `newton` implement [`deepcontact_core::VelocitySolver`] and report per iteration
 //! `max |Δλ|` and `sqrt(Σ Δλ²)`, the natural-map residual (in impulse units, as PGS), the
@@ -43,9 +46,11 @@ mod block_lu;
 mod error;
 mod exact;
 mod newton;
+mod point_graph;
 mod psor;
 mod registry;
 mod rescue;
+mod weight;
 
 pub use assembly::{AssemblyMode, DEFAULT_DENSE_THRESHOLD, Delassus, MAX_DENSE_ROWS};
 pub use error::LcpError;
@@ -53,9 +58,10 @@ pub use exact::{
     ContactState, EXACT_MAX_POINTS, EXACT_REGULARIZATION, ExactSolution, Violation, solve_exact,
     violation,
 };
-pub use newton::{NewtonSettings, NewtonSolver, NewtonStats, NewtonWork, RETRY_REGULARIZATION};
+pub use newton::{NewtonSettings, NewtonSolver, NewtonStats, RETRY_REGULARIZATION};
 pub use psor::{PsorSettings, PsorSolver};
 pub use registry::register;
 pub use rescue::{
     PgsRescueSolver, RescueSettings, RescueStart, RescueStats, RescueTrigger, stalled,
 };
+pub use weight::{NewtonWork, PsorWork};

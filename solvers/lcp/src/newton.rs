@@ -13,6 +13,7 @@ use crate::assembly::{
     sweep_order,
 };
 use crate::block_lu::BlockLu;
+use crate::weight::{NewtonWork, paired_points};
 use deepcontact_core::solver::begin_solve;
 
 /// Relative regularisation a Newton direction is recomputed with (at least) after its line
@@ -136,75 +137,6 @@ pub struct NewtonStats {
     pub max_regularization: Real,
     /// Whether `W` was assembled dense (the Newton matrix is factorised sparse either way).
     pub dense: bool,
-}
-
-/// The size of one Newton iteration on a problem, counted from its structure alone (the same
-/// on every machine and for every start), and what it weighs in PGS passes.
-///
-/// The weights are times per unit of structure fitted by least squares on islands of the
-/// suite's piles (8 to 1 578 points), the 20-row pyramid and the 20-box stack, on a 2-vCPU AMD
-/// EPYC (family 25 model 17), each time the slope between two iteration counts
-/// (`cargo run --release -p deepcontact-benches --example newton_pass_cost`, which prints the
-/// measured and the modelled passes island by island): a PGS pass 4.8 ns a point of a
-/// single-point manifold (swept in lanes) and 21.5 ns a point of a two-point one (the block
-/// solver); a Newton iteration 0.94 ns a block update of the factorisation, 11.6 ns a block of
-/// the factors (the triangular solves and the accuracy check), 0.1 ns an entry of `W` and
-/// 30 ns a point (classification, line search); the set-up of a solve (assembly, the
-/// analysis reused when the contact graph is unchanged) 5.0 ns an entry of `W`, 16.8 ns a
-/// block of the factors and 87 ns a point. Counted this way an iteration weighs 6 to 53
-/// passes and a set-up 24 to 198 on those islands, within a factor of two of the measured
-/// ratio either way (iterations that retry with a larger regularisation factorise again and
-/// weigh more: the 20-box stack's, measured 11–21 against 6 counted); a ratio of times, it
-/// moves less between machines than the times do.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct NewtonWork {
-    /// Contact points (2 rows each).
-    pub points: usize,
-    /// Of those, the points of two-point manifolds (PGS solves their normals as a block).
-    pub paired_points: usize,
-    /// Stored entries of `W` (rows² when assembled dense): one product `W x` reads each once.
-    pub w_entries: usize,
-    /// 2 × 2 blocks of the factors' filled pattern: a triangular solve visits each once.
-    pub filled_blocks: usize,
-    /// 2 × 2 block updates of one factorisation.
-    pub updates: usize,
-}
-
-impl NewtonWork {
-    /// A PGS pass over the island, ns (the fit's weights; see the type's documentation).
-    fn pass_ns(&self) -> Real {
-        let single = self.points - self.paired_points.min(self.points);
-        4.8 * single as Real + 21.5 * self.paired_points as Real
-    }
-
-    /// One Newton iteration, ns.
-    fn iteration_ns(&self) -> Real {
-        0.94 * self.updates as Real
-            + 11.6 * self.filled_blocks as Real
-            + 0.1 * self.w_entries as Real
-            + 30.0 * self.points as Real
-    }
-
-    /// A solve's set-up, ns.
-    fn set_up_ns(&self) -> Real {
-        5.0 * self.w_entries as Real
-            + 16.8 * self.filled_blocks as Real
-            + 87.0 * self.points as Real
-    }
-
-    /// What a solve weighs in PGS passes of the same island, each part rounded up (an empty
-    /// problem: nothing to set up, one pass an iteration).
-    pub fn pass_cost(&self) -> PassCost {
-        let pass = self.pass_ns();
-        if pass <= 0.0 {
-            return PassCost::ONE_PER_ITERATION;
-        }
-        let passes = |ns: Real| (ns / pass).ceil().min(u32::MAX as Real) as u32;
-        PassCost {
-            set_up: passes(self.set_up_ns()),
-            per_iteration: passes(self.iteration_ns()).max(1),
-        }
-    }
 }
 
 /// How the Newton matrix treats one row.
@@ -442,12 +374,7 @@ impl NewtonSolver {
             .is_dense_for(rows, self.settings.dense_threshold);
         Ok(NewtonWork {
             points: problem.points.len(),
-            paired_points: problem
-                .manifolds
-                .iter()
-                .filter(|&&(start, end)| end - start == 2)
-                .count()
-                * 2,
+            paired_points: paired_points(&problem.manifolds),
             w_entries: if dense { rows * rows } else { 4 * blocks },
             filled_blocks: self.lu.filled_blocks(),
             updates: self.lu.updates(),

@@ -4,7 +4,7 @@ use std::time::Instant;
 
 use deepcontact_core::math::{Real, Velocity};
 use deepcontact_core::{
-    ContactProblem, CoreError, Impulse, SolveReport, SolverSettings, VelocitySolver,
+    ContactProblem, CoreError, Impulse, PassCost, SolveReport, SolverSettings, VelocitySolver,
 };
 
 use crate::LcpError;
@@ -12,6 +12,8 @@ use crate::assembly::{
     AssemblyMode, DEFAULT_DENSE_THRESHOLD, Delassus, impulses_to_rows, rows_to_impulses, sor_sweep,
     sweep_order,
 };
+use crate::point_graph::PointGraph;
+use crate::weight::{PsorWork, paired_points};
 use deepcontact_core::solver::begin_solve;
 
 /// Options of [`PsorSolver`].
@@ -71,6 +73,7 @@ pub struct PsorSolver {
     order: Vec<u32>,
     x: Vec<Real>,
     w: Vec<Real>,
+    graph: PointGraph,
 }
 
 impl PsorSolver {
@@ -90,6 +93,26 @@ impl PsorSolver {
     /// The system assembled by the last solve.
     pub fn delassus(&self) -> &Delassus {
         &self.delassus
+    }
+
+    /// The structure of one sweep on `problem`, from the points and the bodies they touch
+    /// (without assembling `W`).
+    pub fn work(&mut self, problem: &ContactProblem) -> Result<PsorWork, LcpError> {
+        self.graph.of_problem(problem)?;
+        let rows = 2 * problem.points.len();
+        let dense = self
+            .settings
+            .assembly
+            .is_dense_for(rows, self.settings.dense_threshold);
+        Ok(PsorWork {
+            points: problem.points.len(),
+            paired_points: paired_points(&problem.manifolds),
+            w_entries: if dense {
+                rows * rows
+            } else {
+                4 * self.graph.blocks()
+            },
+        })
     }
 
     /// [`VelocitySolver::solve`] with this crate's error type.
@@ -173,6 +196,13 @@ impl VelocitySolver for PsorSolver {
         report: &mut SolveReport,
     ) -> Result<(), CoreError> {
         self.solve_lcp(problem, settings, impulses, velocities, report)
+            .map_err(|e| e.into_core("psor"))
+    }
+
+    /// [`PsorWork::pass_cost`] of `problem` (from its structure).
+    fn pass_cost(&mut self, problem: &ContactProblem) -> Result<PassCost, CoreError> {
+        self.work(problem)
+            .map(|w| w.pass_cost())
             .map_err(|e| e.into_core("psor"))
     }
 }

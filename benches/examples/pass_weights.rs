@@ -1,15 +1,16 @@
-//! What a Newton iteration and a Newton solve's set-up cost in PGS passes of the same island,
-//! measured, beside what `NewtonWork::pass_cost` counts from the island's structure (the
-//! weight a pass budget gives a provider's Newton solve, e.g. `presolve`'s).
+//! What an iteration and a solve's set-up of deepcontact-lcp's Newton and PSOR solvers cost in
+//! PGS passes of the same island, measured, beside what `NewtonWork::pass_cost` and
+//! `PsorWork::pass_cost` count from the island's structure (the weight a pass budget gives a
+//! provider's inner solve, e.g. `presolve`'s).
 //!
 //! Each listed scene is stepped with carried impulses and PGS; every `--every`-th step, each
 //! island of 8 points or more is timed from its start: a PGS pass as the slope between 50 and
-//! 250 iterations, a Newton iteration as the slope between 1 and 6, the set-up as the time of
-//! one iteration less that slope (minimum of 5 runs each; the analysis of an unchanged contact
-//! graph reused, as in a solve from step to step).
+//! 250 iterations, a Newton iteration as the slope between 1 and 6, a PSOR sweep between 1 and
+//! 21, a set-up as the time of one iteration less that slope (minimum of 5 runs each; Newton's
+//! analysis of an unchanged contact graph reused, as in a solve from step to step).
 //!
 //! ```sh
-//! cargo run --release -p deepcontact-benches --example newton_pass_cost -- \
+//! cargo run --release -p deepcontact-benches --example pass_weights -- \
 //!     --steps 250 --every 25 pile "pile:bodies=1000" box-pile "pyramid:base=20,jitter=0.01"
 //! ```
 
@@ -19,12 +20,12 @@ use deepcontact_core::{
     ContactProblem, CoreError, Impulse, ResidualNorm, SolveReport, SolverSettings, Velocity,
     VelocitySolver, WorldSettings,
 };
-use deepcontact_lcp::NewtonSolver;
+use deepcontact_lcp::{NewtonSolver, PsorSolver};
 use deepcontact_pgs::{PgsPositionSolver, PgsSolver};
 
 fn main() {
     if let Err(e) = run() {
-        eprintln!("newton_pass_cost: {e}");
+        eprintln!("pass_weights: {e}");
         std::process::exit(2);
     }
 }
@@ -76,29 +77,35 @@ struct Timing {
 
 impl Timing {
     fn line(&self, problem: &ContactProblem, start: &[Impulse]) -> Result<(), CoreError> {
-        let mut newton = NewtonSolver::new();
-        let cost = newton
-            .work(problem)
-            .map_err(|e| e.into_core("newton"))?
-            .pass_cost();
         let mut pgs = PgsSolver::new();
         let pass = (fastest(&mut pgs, problem, start, 250)?.0
             - fastest(&mut pgs, problem, start, 50)?.0)
             / 200.0;
+        let mut newton = NewtonSolver::new();
+        let newton_cost = newton.pass_cost(problem)?;
         let (one, _) = fastest(&mut newton, problem, start, 1)?;
         let (six, ran) = fastest(&mut newton, problem, start, 6)?;
+        let mut psor = PsorSolver::new();
+        let psor_cost = psor.pass_cost(problem)?;
+        let (first, _) = fastest(&mut psor, problem, start, 1)?;
+        let (more, _) = fastest(&mut psor, problem, start, 21)?;
         if ran < 2 || pass <= 0.0 {
             return Ok(());
         }
         let iteration = (six - one) / f64::from(ran - 1);
+        let sweep = (more - first) / 20.0;
         println!(
-            "{:<28} {:>6} {:>10.1} {:>10} {:>10.1} {:>10}",
+            "{:<28} {:>6} {:>7.1} {:>7} {:>7.1} {:>7} {:>7.1} {:>7} {:>7.1} {:>7}",
             self.scene,
             problem.len(),
             iteration / pass,
-            cost.per_iteration,
+            newton_cost.per_iteration,
             (one - iteration) / pass,
-            cost.set_up
+            newton_cost.set_up,
+            sweep / pass,
+            psor_cost.per_iteration,
+            (first - sweep) / pass,
+            psor_cost.set_up,
         );
         Ok(())
     }
@@ -152,8 +159,20 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     }
     let registry = deepcontact_experiments::full_registry();
     println!(
-        "{:<28} {:>6} {:>10} {:>10} {:>10} {:>10}",
-        "scene", "points", "iteration", "counted", "set-up", "counted"
+        "passes measured and counted: a Newton iteration, its set-up, a PSOR sweep, its set-up"
+    );
+    println!(
+        "{:<28} {:>6} {:>7} {:>7} {:>7} {:>7} {:>7} {:>7} {:>7} {:>7}",
+        "scene",
+        "points",
+        "newton",
+        "counted",
+        "set-up",
+        "counted",
+        "psor",
+        "counted",
+        "set-up",
+        "counted"
     );
     for scene in scenes {
         let mut world = registry
