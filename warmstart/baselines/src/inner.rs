@@ -129,7 +129,16 @@ impl InnerSolve {
             max_iterations: iterations,
             ..self.settings
         };
-        solve(&settings, &mut self.velocities, &mut self.report).map_err(|e| failed(what, &e))
+        solve(&settings, &mut self.velocities, &mut self.report).map_err(|e| failed(what, &e))?;
+        // A solver that iterates past the cap it was given (`pgs-rescue` finishing an island
+        // PGS left at it) would spend passes the budget does not have.
+        if cap.is_some() && self.report.iterations > iterations {
+            return Err(WarmStartError::Provider(format!(
+                "{what} failed: its solver ran {} iterations under a pass budget that allowed {iterations}",
+                self.report.iterations
+            )));
+        }
+        Ok(())
     }
 
     /// Forgets the last solve's report (an island with nothing to solve).
@@ -152,4 +161,55 @@ impl InnerSolve {
 /// The provider error for a failed inner solve named `what`.
 fn failed(what: &str, e: &CoreError) -> WarmStartError {
     WarmStartError::Provider(format!("{what} failed: {e}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use deepcontact_core::ContactProblem;
+
+    /// A solver that runs `extra` iterations past the cap it is given, as a finishing stage
+    /// does.
+    struct Overrun {
+        extra: u32,
+    }
+
+    impl VelocitySolver for Overrun {
+        fn name(&self) -> &str {
+            "overrun"
+        }
+        fn solve(
+            &mut self,
+            _: &ContactProblem,
+            settings: &SolverSettings,
+            _: &mut [Impulse],
+            _: &mut [Velocity],
+            report: &mut SolveReport,
+        ) -> Result<(), CoreError> {
+            report.iterations = settings.max_iterations + self.extra;
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_solver_past_its_cap_under_a_budget_is_an_error_not_an_overspend() {
+        let mut inner = InnerSolve::new("presolve", "iterations", 20, 100, 1e-6).unwrap();
+        let problem = ContactProblem::new();
+        let mut solver = Overrun { extra: 5 };
+        let e = inner
+            .run(&mut solver, &problem, &mut [], "presolve", Some(8))
+            .unwrap_err();
+        assert!(e.to_string().contains("ran 13 iterations"), "{e}");
+        // Within its cap it is fine, and without a budget its own rule is its business.
+        let mut solver = Overrun { extra: 0 };
+        inner
+            .run(&mut solver, &problem, &mut [], "presolve", Some(8))
+            .unwrap();
+        assert_eq!(inner.passes(), 8);
+        let mut solver = Overrun { extra: 5 };
+        inner
+            .run(&mut solver, &problem, &mut [], "presolve", None)
+            .unwrap();
+        assert_eq!(inner.passes(), 25);
+    }
 }
