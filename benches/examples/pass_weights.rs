@@ -82,11 +82,11 @@ impl Timing {
             - fastest(&mut pgs, problem, start, 50)?.0)
             / 200.0;
         let mut newton = NewtonSolver::new();
-        let newton_cost = newton.pass_cost(problem)?;
+        let newton_cost = newton.pass_cost(problem, None)?;
         let (one, _) = fastest(&mut newton, problem, start, 1)?;
         let (six, ran) = fastest(&mut newton, problem, start, 6)?;
         let mut psor = PsorSolver::new();
-        let psor_cost = psor.pass_cost(problem)?;
+        let psor_cost = psor.pass_cost(problem, None)?;
         let (first, _) = fastest(&mut psor, problem, start, 1)?;
         let (more, _) = fastest(&mut psor, problem, start, 21)?;
         if ran < 2 || pass <= 0.0 {
@@ -143,9 +143,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
             "--every" => every = value()?.parse()?,
             "--seed" => seed = value()?.parse()?,
             "-h" | "--help" => {
-                println!(
-                    "usage: newton_pass_cost [--steps 250] [--every 25] [--seed 100] SCENE..."
-                );
+                println!("usage: pass_weights [--steps 250] [--every 25] [--seed 100] SCENE...");
                 return Ok(());
             }
             _ => scenes.push(a),

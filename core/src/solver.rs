@@ -331,9 +331,15 @@ pub trait VelocitySolver: Send {
     /// provider's inner solve (default [`PassCost::ONE_PER_ITERATION`]: an iteration is one
     /// pass). Counted from the problem's structure alone, so that a budget decides the same
     /// way on every machine and for every start. A solver whose iteration is other work (a
-    /// factorisation, an assembled matrix) says what it weighs here.
-    fn pass_cost(&mut self, problem: &ContactProblem) -> Result<PassCost, CoreError> {
-        let _ = problem;
+    /// factorisation, an assembled matrix) says what it weighs here. Exact whenever
+    /// `budget` is `None` or a solve of one iteration fits in it; when not, the solver may
+    /// return a lower bound that already exceeds the budget, without working out the rest.
+    fn pass_cost(
+        &mut self,
+        problem: &ContactProblem,
+        budget: Option<u32>,
+    ) -> Result<PassCost, CoreError> {
+        let _ = (problem, budget);
         Ok(PassCost::ONE_PER_ITERATION)
     }
 
@@ -402,8 +408,12 @@ impl<S: VelocitySolver + ?Sized> VelocitySolver for Box<S> {
     fn projects_start(&self) -> bool {
         (**self).projects_start()
     }
-    fn pass_cost(&mut self, problem: &ContactProblem) -> Result<PassCost, CoreError> {
-        (**self).pass_cost(problem)
+    fn pass_cost(
+        &mut self,
+        problem: &ContactProblem,
+        budget: Option<u32>,
+    ) -> Result<PassCost, CoreError> {
+        (**self).pass_cost(problem, budget)
     }
     fn owns_positions(&self) -> bool {
         (**self).owns_positions()

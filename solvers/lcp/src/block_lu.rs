@@ -141,20 +141,23 @@ impl BlockLu {
         Ok(())
     }
 
-    /// [`Self::analyse`] from `problem`'s structure alone, without `W`'s values: a point is
-    /// adjacent to itself and to every point that shares a movable body with it, which is the
-    /// pattern of `W` assembled sparse. What [`Self::filled_blocks`] and [`Self::updates`]
-    /// count then is the factorisation of that pattern, and an [`Self::analyse`] of the same
-    /// graph reuses the work. Returns the blocks of the pattern.
-    pub(crate) fn analyse_structure(
-        &mut self,
-        problem: &ContactProblem,
-    ) -> Result<usize, LcpError> {
+    /// The point graph of `problem` from its structure alone, without `W`'s values (a point
+    /// is adjacent to itself and to every point that shares a movable body with it: the
+    /// pattern of `W` assembled sparse), for [`Self::analyse_structure`]. Returns the blocks
+    /// of the pattern.
+    pub(crate) fn structure(&mut self, problem: &ContactProblem) -> Result<usize, LcpError> {
         let points = problem.points.len();
         check_points(points, 2 * points)?;
         self.graph.of_problem(problem)?;
-        self.analyse_graph(2 * points)?;
         Ok(self.graph.blocks())
+    }
+
+    /// [`Self::analyse`] of the graph of the last [`Self::structure`]: what
+    /// [`Self::filled_blocks`] and [`Self::updates`] count then is the factorisation of that
+    /// pattern, and an [`Self::analyse`] of the same graph reuses the work.
+    pub(crate) fn analyse_structure(&mut self) -> Result<(), LcpError> {
+        let rows = 2 * (self.graph.ptr.len().max(1) - 1);
+        self.analyse_graph(rows)
     }
 
     /// The order, filled pattern and update lists of the point graph in `graph`,
@@ -731,7 +734,8 @@ mod tests {
         for (seed, bodies, points) in [(11, 50, 100), (3, 2, 1), (21, 120, 260)] {
             let problem = random_island(seed, bodies, points);
             let mut lu = BlockLu::default();
-            let blocks = lu.analyse_structure(&problem).unwrap();
+            let blocks = lu.structure(&problem).unwrap();
+            lu.analyse_structure().unwrap();
             let (filled, updates) = (lu.filled_blocks(), lu.updates());
             let mut del = Delassus::new();
             del.assemble(&problem, AssemblyMode::Sparse, 0).unwrap();
@@ -745,6 +749,34 @@ mod tests {
         }
     }
 
+    /// Under a budget too small for one iteration Newton may answer with a lower bound
+    /// instead of analysing the factors: the bound is above the budget and below the exact
+    /// weight, so the decision (no iteration) is the one the exact weight gives.
+    #[test]
+    fn a_newton_weight_bound_decides_as_the_exact_weight() {
+        use deepcontact_core::VelocitySolver;
+        for (seed, bodies, points) in [(11, 50, 100), (21, 120, 260), (4, 3, 5)] {
+            let problem = random_island(seed, bodies, points);
+            let exact = crate::NewtonSolver::new()
+                .pass_cost(&problem, None)
+                .unwrap();
+            for budget in [0, 1, 7, 15, exact.passes(1) - 1, exact.passes(1), 10_000] {
+                let cost = crate::NewtonSolver::new()
+                    .pass_cost(&problem, Some(budget))
+                    .unwrap();
+                assert!(cost.passes(1) <= exact.passes(1), "seed {seed}");
+                assert_eq!(
+                    cost.iterations_within(budget, 20),
+                    exact.iterations_within(budget, 20),
+                    "seed {seed}, budget {budget}"
+                );
+                if exact.passes(1) <= budget {
+                    assert_eq!(cost, exact, "seed {seed}, budget {budget}");
+                }
+            }
+        }
+    }
+
     /// A point naming a body the problem does not have is an error, not a panic.
     #[test]
     fn the_structural_pattern_rejects_bad_body_indices() {
@@ -752,7 +784,7 @@ mod tests {
         problem.points[3].body_b = 99;
         let mut lu = BlockLu::default();
         assert!(matches!(
-            lu.analyse_structure(&problem),
+            lu.structure(&problem),
             Err(LcpError::InvalidProblem(_))
         ));
     }

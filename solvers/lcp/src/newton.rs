@@ -366,19 +366,37 @@ impl NewtonSolver {
     /// (without assembling `W`; the analysis of the factors is kept, and a solve of the same
     /// contact graph after it reuses it).
     pub fn work(&mut self, problem: &ContactProblem) -> Result<NewtonWork, LcpError> {
-        let blocks = self.lu.analyse_structure(problem)?;
+        self.work_within(problem, None)
+    }
+
+    /// [`Self::work`], or, when even a lower bound of one iteration's weight exceeds
+    /// `budget`, that bound (the factors' blocks counted as `W`'s, no update counted: fill-in
+    /// only adds to both) without analysing the factors.
+    fn work_within(
+        &mut self,
+        problem: &ContactProblem,
+        budget: Option<u32>,
+    ) -> Result<NewtonWork, LcpError> {
+        let blocks = self.lu.structure(problem)?;
         let rows = 2 * problem.points.len();
         let dense = self
             .settings
             .assembly
             .is_dense_for(rows, self.settings.dense_threshold);
-        Ok(NewtonWork {
+        let mut work = NewtonWork {
             points: problem.points.len(),
             paired_points: paired_points(&problem.manifolds),
             w_entries: if dense { rows * rows } else { 4 * blocks },
-            filled_blocks: self.lu.filled_blocks(),
-            updates: self.lu.updates(),
-        })
+            filled_blocks: blocks,
+            updates: 0,
+        };
+        if budget.is_some_and(|b| work.pass_cost().passes(1) > b) {
+            return Ok(work);
+        }
+        self.lu.analyse_structure()?;
+        work.filled_blocks = self.lu.filled_blocks();
+        work.updates = self.lu.updates();
+        Ok(work)
     }
 
     /// Assembles the problem, sizes the buffers and analyses the Newton matrix's pattern.
@@ -809,9 +827,13 @@ impl VelocitySolver for NewtonSolver {
     }
 
     /// [`NewtonWork::pass_cost`] of `problem` (from its structure; the solve after it reuses
-    /// the analysis).
-    fn pass_cost(&mut self, problem: &ContactProblem) -> Result<PassCost, CoreError> {
-        self.work(problem)
+    /// the analysis), or a lower bound above `budget` when one iteration cannot fit it.
+    fn pass_cost(
+        &mut self,
+        problem: &ContactProblem,
+        budget: Option<u32>,
+    ) -> Result<PassCost, CoreError> {
+        self.work_within(problem, budget)
             .map(|w| w.pass_cost())
             .map_err(|e| e.into_core("newton"))
     }

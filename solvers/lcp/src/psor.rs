@@ -199,8 +199,13 @@ impl VelocitySolver for PsorSolver {
             .map_err(|e| e.into_core("psor"))
     }
 
-    /// [`PsorWork::pass_cost`] of `problem` (from its structure).
-    fn pass_cost(&mut self, problem: &ContactProblem) -> Result<PassCost, CoreError> {
+    /// [`PsorWork::pass_cost`] of `problem` (from its structure; exact whatever the budget).
+    fn pass_cost(
+        &mut self,
+        problem: &ContactProblem,
+        budget: Option<u32>,
+    ) -> Result<PassCost, CoreError> {
+        let _ = budget;
         self.work(problem)
             .map(|w| w.pass_cost())
             .map_err(|e| e.into_core("psor"))

@@ -82,7 +82,9 @@ impl InnerSolve {
         what: &str,
         cap: Option<u32>,
     ) -> Result<(), WarmStartError> {
-        let cost = solver.pass_cost(problem).map_err(|e| failed(what, &e))?;
+        let cost = solver
+            .pass_cost(problem, cap)
+            .map_err(|e| failed(what, &e))?;
         self.run_with(problem, what, cap, cost, |settings, velocities, report| {
             solver.solve(problem, settings, impulses, velocities, report)
         })
