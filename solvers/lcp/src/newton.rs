@@ -13,7 +13,7 @@ use crate::assembly::{
     sweep_order,
 };
 use crate::block_lu::BlockLu;
-use crate::weight::{NewtonWork, paired_points};
+use crate::weight::{NewtonWork, island_size};
 use deepcontact_core::solver::begin_solve;
 
 /// Relative regularisation a Newton direction is recomputed with (at least) after its line
@@ -378,15 +378,16 @@ impl NewtonSolver {
         budget: Option<u32>,
     ) -> Result<NewtonWork, LcpError> {
         let blocks = self.lu.structure(problem)?;
-        let rows = 2 * problem.points.len();
-        let dense = self
-            .settings
-            .assembly
-            .is_dense_for(rows, self.settings.dense_threshold);
+        let (points, paired_points, w_entries) = island_size(
+            problem,
+            self.settings.assembly,
+            self.settings.dense_threshold,
+            blocks,
+        );
         let mut work = NewtonWork {
-            points: problem.points.len(),
-            paired_points: paired_points(&problem.manifolds),
-            w_entries: if dense { rows * rows } else { 4 * blocks },
+            points,
+            paired_points,
+            w_entries,
             filled_blocks: blocks,
             updates: 0,
         };

@@ -13,7 +13,7 @@ use crate::assembly::{
     sweep_order,
 };
 use crate::point_graph::PointGraph;
-use crate::weight::{PsorWork, paired_points};
+use crate::weight::{PsorWork, island_size};
 use deepcontact_core::solver::begin_solve;
 
 /// Options of [`PsorSolver`].
@@ -99,19 +99,16 @@ impl PsorSolver {
     /// (without assembling `W`).
     pub fn work(&mut self, problem: &ContactProblem) -> Result<PsorWork, LcpError> {
         self.graph.of_problem(problem)?;
-        let rows = 2 * problem.points.len();
-        let dense = self
-            .settings
-            .assembly
-            .is_dense_for(rows, self.settings.dense_threshold);
+        let (points, paired_points, w_entries) = island_size(
+            problem,
+            self.settings.assembly,
+            self.settings.dense_threshold,
+            self.graph.blocks(),
+        );
         Ok(PsorWork {
-            points: problem.points.len(),
-            paired_points: paired_points(&problem.manifolds),
-            w_entries: if dense {
-                rows * rows
-            } else {
-                4 * self.graph.blocks()
-            },
+            points,
+            paired_points,
+            w_entries,
         })
     }
 

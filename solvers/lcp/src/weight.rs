@@ -27,7 +27,9 @@
 //! against 6 counted) and islands under 15 points (counted up to 3 × the measured). A ratio of
 //! times, the weight moves less between machines than the times do.
 
-use deepcontact_core::{PassCost, Real};
+use deepcontact_core::{ContactProblem, PassCost, Real};
+
+use crate::AssemblyMode;
 
 /// A PGS pass over an island of `points` points, `paired` of them in two-point manifolds, ns.
 fn pass_ns(points: usize, paired: usize) -> Real {
@@ -102,8 +104,27 @@ impl PsorWork {
 }
 
 /// Points of `manifolds` that belong to two-point manifolds.
-pub(crate) fn paired_points(manifolds: &[(u32, u32)]) -> usize {
+fn paired_points(manifolds: &[(u32, u32)]) -> usize {
     manifolds.iter().filter(|&&(s, e)| e - s == 2).count() * 2
+}
+
+/// The structure every weight starts from: `problem`'s points, its two-point manifolds' points,
+/// and the entries of `W` as `mode` would store them (`rows²` dense, 4 a block of the
+/// pattern's `blocks` sparse).
+pub(crate) fn island_size(
+    problem: &ContactProblem,
+    mode: AssemblyMode,
+    dense_threshold: usize,
+    blocks: usize,
+) -> (usize, usize, usize) {
+    let points = problem.points.len();
+    let rows = 2 * points;
+    let w_entries = if mode.is_dense_for(rows, dense_threshold) {
+        rows * rows
+    } else {
+        4 * blocks
+    };
+    (points, paired_points(&problem.manifolds), w_entries)
 }
 
 #[cfg(test)]
