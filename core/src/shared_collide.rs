@@ -161,6 +161,19 @@ impl Clone for SharedCollide {
     }
 }
 
+/// `narrow`'s contacts and manifold ranges: the pair chunks', in chunk order.
+fn gather_contacts(narrow: &mut NarrowPhase, chunks: &[Chunk]) {
+    narrow.contacts.clear();
+    narrow.manifolds_ranges.clear();
+    for chunk in chunks {
+        let offset = narrow.contacts.len() as u32;
+        narrow.contacts.extend_from_slice(&chunk.contacts);
+        narrow
+            .manifolds_ranges
+            .extend(chunk.ranges.iter().map(|&(s, e)| (s + offset, e + offset)));
+    }
+}
+
 /// The phases the threads share.
 const BOUNDS: usize = 0;
 const JOIN: usize = 1;
@@ -231,6 +244,20 @@ impl Queue {
 }
 
 impl SharedCollide {
+    /// Whether the leading thread takes the join's items too (always, but in the tests that
+    /// leave them to the helpers).
+    #[cfg(not(test))]
+    fn lead_takes_join(&self, _threads: usize) -> bool {
+        true
+    }
+
+    /// Whether the leading thread takes the join's items too (not when a test leaves them to
+    /// the `threads − 1` helpers).
+    #[cfg(test)]
+    fn lead_takes_join(&self, threads: usize) -> bool {
+        !(self.leave_join && threads > 1)
+    }
+
     /// The broad phase's pairs of `bodies` (AABBs grown by `margin`) and their manifolds
     /// (points with separation ≤ `margin`) into `narrow`'s contacts and ranges, on the
     /// calling thread and `threads − 1` helpers (`threads` ≥ 1). Returns the pairs.
@@ -241,6 +268,7 @@ impl SharedCollide {
         threads: usize,
         narrow: &mut NarrowPhase,
     ) -> &[(u32, u32)] {
+        let take_join = self.lead_takes_join(threads);
         let n = bodies.len();
         let bound_chunks = n.div_ceil(BODY_CHUNK);
         let inv = self.prepare(bodies, margin, bound_chunks);
@@ -270,10 +298,6 @@ impl SharedCollide {
                 &mut lock(&chunks[c]),
             ),
         };
-        #[cfg(test)]
-        let take_join = !(self.leave_join && threads > 1);
-        #[cfg(not(test))]
-        let take_join = true;
         let queue = Queue::default();
         let mut next_inv = inv;
         let mut pair_chunks = 0;
@@ -327,15 +351,7 @@ impl SharedCollide {
         drop(chunks);
         self.inv = Some(next_inv);
         self.helped = PHASES.map(|p| queue.helped[p].load(Mem::Relaxed));
-        narrow.contacts.clear();
-        narrow.manifolds_ranges.clear();
-        for chunk in &self.chunks[..pair_chunks] {
-            let offset = narrow.contacts.len() as u32;
-            narrow.contacts.extend_from_slice(&chunk.contacts);
-            narrow
-                .manifolds_ranges
-                .extend(chunk.ranges.iter().map(|&(s, e)| (s + offset, e + offset)));
-        }
+        gather_contacts(narrow, &self.chunks[..pair_chunks]);
         &self.joined.pairs
     }
 
