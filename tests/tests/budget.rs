@@ -154,7 +154,8 @@ fn regression_krylov_spent_more_passes_than_it_was_offered() {
 
 /// `presolve` counted each Newton iteration as one pass, though an iteration (a
 /// factorisation of the island's Newton matrix) and the solve's set-up weigh tens of passes,
-/// so under a budget of 8 it ran seven Newton iterations as seven passes.
+/// so under a budget of 8 it ran up to seven Newton iterations (1 to 3 an island on this pile)
+/// and reported each as a pass.
 #[test]
 fn regression_presolve_counted_a_newton_iteration_as_one_pass() {
     let l = ledger("presolve", Some(8), 90);

@@ -131,7 +131,7 @@ pub(crate) fn island_size(
 mod tests {
     use super::*;
 
-    /// A circle pile's island of 130 points (the suite's figures): an iteration weighs tens
+    /// An island about the size of a 130-point one of the circle pile: an iteration weighs tens
     /// of passes, its set-up more, and box faces, whose PGS pass costs more, weigh less.
     #[test]
     fn a_newton_iteration_weighs_tens_of_passes_and_less_on_box_faces() {
