@@ -11,6 +11,14 @@
 //! target/release/examples/thread_pairs --bodies 10000 --steps 250 --pairs 12
 //! ```
 //!
+//! `--ceiling` adds to each pair a third run: B / A copies of the A-thread process started side by
+//! side (B a multiple of A), timed from their start to the last one's exit. That run does B / A
+//! times the work of one A-thread process with every core B threads use busy and nothing shared,
+//! so its wall time over B / A times the A-thread process's is the B / A ratio a run with no
+//! serial part and no waits would reach on this machine: the ceiling that the host's cores,
+//! caches and neighbours leave. Each pair then runs the three in turns (the order rotates), and the
+//! summary gives the ceiling's median beside the ratio.
+//!
 //! `--bin PATH` names the binary (default: `deepcontact` beside this example's directory, as
 //! cargo builds both into `target/release`); `--scene`, `--seed` and `--solver` are passed on.
 //! Last, a table of the stages' seconds (`collide_seconds`, `islands_seconds`,
@@ -36,6 +44,8 @@ struct Options {
     pairs: usize,
     /// The first step of each phase after the first (ascending, under `steps`).
     phases: Vec<u64>,
+    /// Whether each pair also times B / A copies of the A-thread process side by side.
+    ceiling: bool,
 }
 
 /// The timed stages of a step report, as the table names them, and their fields.
@@ -58,7 +68,7 @@ struct Run {
 
 const USAGE: &str = "usage: thread_pairs [--bin PATH] [--bodies 10000] [--steps 250] \
                      [--seed S] [--scene NAME] [--solver SPEC] [--threads 1,2] [--pairs 12] \
-                     [--phases STEP,STEP,...]";
+                     [--phases STEP,STEP,...] [--ceiling]";
 
 fn parse() -> Result<Option<Options>, String> {
     let beside = std::env::current_exe()
@@ -75,12 +85,17 @@ fn parse() -> Result<Option<Options>, String> {
         threads: [1, 2],
         pairs: 12,
         phases: Vec::new(),
+        ceiling: false,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         if a == "--help" || a == "-h" {
             println!("{USAGE}");
             return Ok(None);
+        }
+        if a == "--ceiling" {
+            o.ceiling = true;
+            continue;
         }
         let value = args.next().ok_or(format!("{a} needs a value\n{USAGE}"))?;
         let number = |v: &str| {
@@ -114,6 +129,12 @@ fn parse() -> Result<Option<Options>, String> {
             _ => return Err(format!("unknown option {a}\n{USAGE}")),
         }
     }
+    if o.ceiling && o.threads[1] % o.threads[0] != 0 {
+        return Err(format!(
+            "--ceiling wants B a multiple of A (B / A copies of the A-thread run): {:?}",
+            o.threads
+        ));
+    }
     if o.pairs == 0 {
         return Err("--pairs must be at least 1".into());
     }
@@ -134,8 +155,8 @@ fn parse() -> Result<Option<Options>, String> {
     Ok(Some(o))
 }
 
-/// Runs one process on `threads` threads and reads its step reports.
-fn run(o: &Options, threads: usize) -> Result<Run, String> {
+/// The `simulate` command of one process on `threads` threads.
+fn command(o: &Options, threads: usize) -> Command {
     let mut cmd = Command::new(&o.bin);
     cmd.arg("simulate")
         .args(["--bodies", &o.bodies.to_string()])
@@ -150,11 +171,66 @@ fn run(o: &Options, threads: usize) -> Result<Run, String> {
     if let Some(solver) = &o.solver {
         cmd.args(["--solver", solver]);
     }
+    cmd
+}
+
+/// Runs one process on `threads` threads and reads its step reports.
+fn run(o: &Options, threads: usize) -> Result<Run, String> {
+    let mut cmd = command(o, threads);
     let t0 = Instant::now();
     let out = cmd
         .output()
         .map_err(|e| format!("{}: {e}", o.bin.display()))?;
     let wall = t0.elapsed().as_secs_f64();
+    read(o, &cmd, out, wall)
+}
+
+/// Runs `copies` processes on `threads` threads each, started side by side; the wall time from
+/// their start to the last one's exit, and the first one's run (every copy must give its hash).
+fn side_by_side(o: &Options, threads: usize, copies: usize) -> Result<(f64, Run), String> {
+    let t0 = Instant::now();
+    let children = (0..copies)
+        .map(|_| {
+            let mut cmd = command(o, threads);
+            cmd.stdout(std::process::Stdio::piped())
+                .stderr(std::process::Stdio::piped());
+            let child = cmd
+                .spawn()
+                .map_err(|e| format!("{}: {e}", o.bin.display()))?;
+            Ok((cmd, child))
+        })
+        .collect::<Result<Vec<_>, String>>()?;
+    // Each child's output read on a thread of its own: a report is megabytes, more than a
+    // pipe holds, so a child whose output nobody reads would wait for the others to end.
+    let outs = std::thread::scope(|scope| {
+        let readers: Vec<_> = children
+            .into_iter()
+            .map(|(cmd, child)| scope.spawn(move || (cmd, child.wait_with_output())))
+            .collect();
+        readers
+            .into_iter()
+            .map(|reader| {
+                let (cmd, out) = reader
+                    .join()
+                    .map_err(|_| "a reader thread panicked".to_string())?;
+                let out = out.map_err(|e| format!("{}: {e}", o.bin.display()))?;
+                Ok((cmd, out))
+            })
+            .collect::<Result<Vec<_>, String>>()
+    })?;
+    let wall = t0.elapsed().as_secs_f64();
+    let mut runs = outs
+        .into_iter()
+        .map(|(cmd, out)| read(o, &cmd, out, wall))
+        .collect::<Result<Vec<_>, String>>()?;
+    if runs.iter().any(|r| r.hash != runs[0].hash) {
+        return Err("copies of one run side by side gave different reports".into());
+    }
+    Ok((wall, runs.swap_remove(0)))
+}
+
+/// Reads the step reports of a finished process (`cmd`, which took `wall` seconds).
+fn read(o: &Options, cmd: &Command, out: std::process::Output, wall: f64) -> Result<Run, String> {
     if !out.status.success() {
         return Err(format!(
             "{:?} failed ({}): {}",
@@ -224,20 +300,34 @@ fn main() {
         o.pairs
     );
     let (mut walls, mut sums, mut hashes) = (Vec::new(), Vec::new(), Vec::<u64>::new());
+    let mut ceilings = Vec::new();
     // Per thread count (A, B): every pair's stage sums.
     let mut stages: [Vec<Vec<[f64; STAGES.len()]>>; 2] = [Vec::new(), Vec::new()];
     for pair in 0..o.pairs {
-        let order = if pair % 2 == 0 { [a, b] } else { [b, a] };
-        let [first, second] = order.map(|threads| {
-            run(&o, threads).unwrap_or_else(|e| {
-                eprintln!("pair {pair}: {e}");
-                std::process::exit(1);
-            })
-        });
-        let (ra, rb) = if order[0] == a {
-            (&first, &second)
+        let fail = |e: String| -> ! {
+            eprintln!("pair {pair}: {e}");
+            std::process::exit(1);
+        };
+        // The runs of a pair in turns: A and B alternating first; with the ceiling's run, the
+        // three in an order that rotates.
+        let order: Vec<usize> = if o.ceiling {
+            let k = pair % 3;
+            [0, 1, 2].into_iter().cycle().skip(k).take(3).collect()
+        } else if pair % 2 == 0 {
+            vec![0, 1]
         } else {
-            (&second, &first)
+            vec![1, 0]
+        };
+        let (mut ra, mut rb, mut side) = (None, None, None);
+        for which in order {
+            match which {
+                0 => ra = Some(run(&o, a).unwrap_or_else(|e| fail(e))),
+                1 => rb = Some(run(&o, b).unwrap_or_else(|e| fail(e))),
+                _ => side = Some(side_by_side(&o, a, b / a).unwrap_or_else(|e| fail(e))),
+            }
+        }
+        let (Some(ra), Some(rb)) = (ra, rb) else {
+            fail("a run of the pair did not happen".into())
         };
         walls.push(rb.wall / ra.wall);
         sums.push(rb.steps / ra.steps);
@@ -246,6 +336,17 @@ fn main() {
              summed steps {b}/{a} {:.3}, reports {:016x} / {:016x}",
             ra.wall, rb.wall, walls[pair], sums[pair], ra.hash, rb.hash
         );
+        if let Some((wall, copy)) = side {
+            ceilings.push(wall / ((b / a) as f64 * ra.wall));
+            println!(
+                "         {} copies of the {a}-thread run side by side {wall:.3} s, ceiling {:.3}",
+                b / a,
+                ceilings[pair]
+            );
+            if copy.hash != ra.hash {
+                fail("the copies side by side gave other reports than the run alone".into());
+            }
+        }
         if ra.hash != rb.hash {
             eprintln!(
                 "pair {pair}: the reports differ between {a} and {b} threads (every field but the \
@@ -270,6 +371,18 @@ fn main() {
          median {sm:.3} ({sl:.3}–{sh:.3}); every report the same bits ({:016x})",
         o.pairs, hashes[0]
     );
+    if !ceilings.is_empty() {
+        let (cm, cl, ch) = spread(&ceilings);
+        let over: Vec<f64> = walls.iter().zip(&ceilings).map(|(w, c)| w / c).collect();
+        let (om, ol, oh) = spread(&over);
+        println!(
+            "ceiling ({} copies of the {a}-thread run side by side over {} × its time alone): \
+             median {cm:.3} ({cl:.3}–{ch:.3}); wall {b}/{a} over the pair's ceiling: median \
+             {om:.3} ({ol:.3}–{oh:.3})",
+            b / a,
+            b / a
+        );
+    }
     print_stages(&o, &stages);
 }
 
