@@ -105,6 +105,12 @@ pub struct PgsSettings {
     /// Floating-point precision of the sweep's rows, impulses and velocities (default
     /// [`Precision::F64`]; `pgs:precision=f32`).
     pub precision: Precision,
+    /// Measure the natural residual of the result into [`SolveReport::natural_residual`]
+    /// (default true). The measure is a pass over the points in scalar code, about what one
+    /// or two sweeps of the batches cost, so a provider that sweeps an island a few passes at
+    /// a time and never reads it turns it off; the report then holds NaN. The impulses and
+    /// velocities do not depend on it.
+    pub natural_residual: bool,
 }
 
 /// Floating-point precision of the velocity sweep.
@@ -137,6 +143,7 @@ impl Default for PgsSettings {
             domain_points: crate::DOMAIN_POINTS,
             chunk: crate::velocity::chunked::CHUNK,
             precision: Precision::F64,
+            natural_residual: true,
         }
     }
 }
@@ -690,7 +697,11 @@ impl PgsSolver {
                 velocities[b as usize] = velocity(v);
             }
         }
-        report.natural_residual = self.natural_residual();
+        report.natural_residual = if self.settings.natural_residual {
+            self.natural_residual()
+        } else {
+            Real::NAN
+        };
         Ok(())
     }
 }
@@ -787,6 +798,43 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Without the natural residual's measure a solve leaves the same impulses and velocities,
+    /// bit for bit, and says it did not measure (NaN), where the default measures a residual
+    /// the cut solve left above zero.
+    #[test]
+    fn a_solve_without_the_natural_residual_leaves_the_same_bits() {
+        let problem = pile_problem();
+        let settings = SolverSettings {
+            max_iterations: 8,
+            ..SolverSettings::default()
+        };
+        let solve = |natural_residual: bool| {
+            let mut solver = PgsSolver::with_settings(PgsSettings {
+                natural_residual,
+                ..PgsSettings::default()
+            });
+            let mut imp = vec![Impulse::ZERO; problem.len()];
+            let mut vel = vec![Velocity::default(); problem.bodies.len()];
+            let mut report = SolveReport::default();
+            solver
+                .solve(&problem, &settings, &mut imp, &mut vel, &mut report)
+                .unwrap();
+            assert_eq!(report.iterations, 8);
+            let bits: Vec<u64> = imp
+                .iter()
+                .flat_map(|i| [i.normal, i.tangent])
+                .chain(vel.iter().flat_map(|v| [v.linear.x, v.linear.y, v.angular]))
+                .map(f64::to_bits)
+                .collect();
+            (bits, report.natural_residual)
+        };
+        let (measured, residual) = solve(true);
+        let (unmeasured, none) = solve(false);
+        assert_eq!(measured, unmeasured);
+        assert!(residual > 0.0 && residual.is_finite(), "{residual}");
+        assert!(none.is_nan(), "{none}");
     }
 
     #[test]

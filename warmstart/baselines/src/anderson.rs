@@ -18,7 +18,7 @@ use deepcontact_core::{
 };
 use deepcontact_pgs::PgsSolver;
 
-use crate::inner::{InnerSolve, in_range, non_negative};
+use crate::inner::{InnerSolve, in_range, non_negative, sweeper};
 use crate::rows::in_cone;
 
 /// Parameters of [`AndersonWarmStart`].
@@ -101,7 +101,7 @@ impl AndersonWarmStart {
         Ok(Self {
             config,
             inner,
-            solver: PgsSolver::new(),
+            solver: sweeper(),
             relaxed: ContactProblem::default(),
             x: Vec::new(),
             g: Vec::new(),

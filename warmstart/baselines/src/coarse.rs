@@ -20,7 +20,7 @@ use deepcontact_core::{
 };
 use deepcontact_pgs::PgsSolver;
 
-use crate::inner::{InnerSolve, in_range};
+use crate::inner::{InnerSolve, in_range, sweeper};
 use crate::rows::{apply_jt, in_cone, row_velocity, velocities_after};
 
 /// Parameters of [`CoarseWarmStart`].
@@ -97,7 +97,7 @@ impl CoarseWarmStart {
         Ok(Self {
             config,
             inner,
-            solver: PgsSolver::new(),
+            solver: sweeper(),
             group_of: Vec::new(),
             cell_index: Vec::new(),
             flat: Vec::new(),

@@ -34,7 +34,7 @@ use deepcontact_core::{
 };
 use deepcontact_pgs::PgsSolver;
 
-use crate::inner::{InnerSolve, non_negative};
+use crate::inner::{InnerSolve, non_negative, sweeper};
 use crate::{AndersonConfig, AndersonWarmStart, BudgetSchedules, ExtrapolatedWarmStart, Schedule};
 
 /// The fewest passes an island's share of the budget must hold for the mixed sweeps of
@@ -275,7 +275,7 @@ impl RelaxedWarmStart {
             start: None,
             first: Vec::new(),
             inner,
-            solver: PgsSolver::new(),
+            solver: sweeper(),
             relaxed: ContactProblem::new(),
             sweeps: 0,
             islands: 0,
