@@ -475,15 +475,16 @@ impl RelaxedWarmStart {
                 budget_omega: 2.0,
                 ..self.config
             };
-            relaxed_copy(&mut self.relaxed, problem, &config, None, cap.is_some());
-            // The first share checks the copy and builds the solver's plan; the others sweep on
-            // it with their own factors (all in [1, 2): the copies differ only in their rows'
-            // effective masses, `PgsSolver::solve_again`).
+            // The first share copies the island, checks the copy and builds the solver's plan;
+            // the others rescale the copy's effective masses by their own factors (all in
+            // [1, 2)) and sweep on that plan (`PgsSolver::solve_again`).
             let what = "over-relaxed sweeps";
             if j == 0 {
+                relaxed_copy(&mut self.relaxed, problem, &config, None, cap.is_some());
                 self.inner
                     .run(&mut self.solver, &self.relaxed, out, what, Some(share))?;
             } else {
+                relax_masses(&mut self.relaxed, problem, &config, None, cap.is_some());
                 self.inner
                     .run_again(&mut self.solver, &self.relaxed, out, what, Some(share))?;
             }
@@ -679,22 +680,10 @@ fn relaxed_copy(
     relaxed.bodies.extend_from_slice(&problem.bodies);
     relaxed.points.extend_from_slice(&problem.points);
     let split = config.pairs > 1.0 && !budget;
-    let cap = if budget { config.budget_omega } else { 2.0 };
     for &(start, end) in &problem.manifolds {
-        let omega = |i: u32| {
-            let omega = match omegas {
-                _ if end > start + 1 => config.pairs,
-                Some(omegas) => omegas[i as usize],
-                None => config.omega,
-            };
-            omega.min(cap)
-        };
         if end == start + 1 || split {
             for i in start..end {
-                let p = &mut relaxed.points[i as usize];
-                p.normal_mass *= omega(i);
-                p.tangent_mass *= omega(i);
-                p.manifold = relaxed.manifolds.len() as u32;
+                relaxed.points[i as usize].manifold = relaxed.manifolds.len() as u32;
                 relaxed.manifolds.push((i, i + 1));
             }
         } else {
@@ -702,6 +691,39 @@ fn relaxed_copy(
                 p.manifold = relaxed.manifolds.len() as u32;
             }
             relaxed.manifolds.push((start, end));
+        }
+    }
+    relax_masses(relaxed, problem, config, omegas, budget);
+}
+
+/// Sets the effective masses of `relaxed`, a [`relaxed_copy`] of `problem` with the same
+/// `budget`, to `problem`'s scaled by the factors `config` and `omegas` give (the rows of a
+/// two-point manifold kept whole keep theirs). A schedule's later shares rescale the copy of
+/// its first instead of copying the island again: the masses are the same products, so the
+/// same bits.
+fn relax_masses(
+    relaxed: &mut ContactProblem,
+    problem: &ContactProblem,
+    config: &RelaxedConfig,
+    omegas: Option<&[Real]>,
+    budget: bool,
+) {
+    let split = config.pairs > 1.0 && !budget;
+    let cap = if budget { config.budget_omega } else { 2.0 };
+    for &(start, end) in &problem.manifolds {
+        if end > start + 1 && !split {
+            continue;
+        }
+        for i in start..end {
+            let omega = match omegas {
+                _ if end > start + 1 => config.pairs,
+                Some(omegas) => omegas[i as usize],
+                None => config.omega,
+            }
+            .min(cap);
+            let (p, q) = (&mut relaxed.points[i as usize], &problem.points[i as usize]);
+            p.normal_mass = q.normal_mass * omega;
+            p.tangent_mass = q.tangent_mass * omega;
         }
     }
 }
