@@ -282,6 +282,57 @@ fn spread(v: &[f64]) -> (f64, f64, f64) {
     (median(v), lo, hi)
 }
 
+/// One pair's runs: the A-thread run, the B-thread run, and with `--ceiling` the wall time of
+/// B / A copies of the A-thread run side by side.
+struct Pair {
+    a: Run,
+    b: Run,
+    ceiling_wall: Option<f64>,
+}
+
+/// Runs pair `pair`: A and B alternating first; with the ceiling's run, the three in an order
+/// that rotates. Every run must report the same bits.
+fn run_pair(o: &Options, pair: usize) -> Result<Pair, String> {
+    let [a, b] = o.threads;
+    let order: Vec<usize> = if o.ceiling {
+        [0, 1, 2]
+            .into_iter()
+            .cycle()
+            .skip(pair % 3)
+            .take(3)
+            .collect()
+    } else if pair % 2 == 0 {
+        vec![0, 1]
+    } else {
+        vec![1, 0]
+    };
+    let (mut ra, mut rb, mut side) = (None, None, None);
+    for which in order {
+        match which {
+            0 => ra = Some(run(o, a)?),
+            1 => rb = Some(run(o, b)?),
+            _ => side = Some(side_by_side(o, a, b / a)?),
+        }
+    }
+    let (Some(ra), Some(rb)) = (ra, rb) else {
+        return Err("a run of the pair did not happen".into());
+    };
+    if ra.hash != rb.hash {
+        return Err(format!(
+            "the reports differ between {a} and {b} threads (every field but the timings \
+             should be the same bits)"
+        ));
+    }
+    if side.as_ref().is_some_and(|(_, copy)| copy.hash != ra.hash) {
+        return Err("the copies side by side gave other reports than the run alone".into());
+    }
+    Ok(Pair {
+        a: ra,
+        b: rb,
+        ceiling_wall: side.map(|(wall, _)| wall),
+    })
+}
+
 fn main() {
     let o = match parse() {
         Ok(Some(o)) => o,
@@ -299,91 +350,66 @@ fn main() {
         o.steps,
         o.pairs
     );
-    let (mut walls, mut sums, mut hashes) = (Vec::new(), Vec::new(), Vec::<u64>::new());
-    let mut ceilings = Vec::new();
+    let (mut walls, mut sums, mut ceilings) = (Vec::new(), Vec::new(), Vec::new());
+    let mut hash = None;
     // Per thread count (A, B): every pair's stage sums.
     let mut stages: [Vec<Vec<[f64; STAGES.len()]>>; 2] = [Vec::new(), Vec::new()];
     for pair in 0..o.pairs {
-        let fail = |e: String| -> ! {
+        let p = run_pair(&o, pair).unwrap_or_else(|e| {
             eprintln!("pair {pair}: {e}");
             std::process::exit(1);
-        };
-        // The runs of a pair in turns: A and B alternating first; with the ceiling's run, the
-        // three in an order that rotates.
-        let order: Vec<usize> = if o.ceiling {
-            let k = pair % 3;
-            [0, 1, 2].into_iter().cycle().skip(k).take(3).collect()
-        } else if pair % 2 == 0 {
-            vec![0, 1]
-        } else {
-            vec![1, 0]
-        };
-        let (mut ra, mut rb, mut side) = (None, None, None);
-        for which in order {
-            match which {
-                0 => ra = Some(run(&o, a).unwrap_or_else(|e| fail(e))),
-                1 => rb = Some(run(&o, b).unwrap_or_else(|e| fail(e))),
-                _ => side = Some(side_by_side(&o, a, b / a).unwrap_or_else(|e| fail(e))),
-            }
-        }
-        let (Some(ra), Some(rb)) = (ra, rb) else {
-            fail("a run of the pair did not happen".into())
-        };
-        walls.push(rb.wall / ra.wall);
-        sums.push(rb.steps / ra.steps);
+        });
+        walls.push(p.b.wall / p.a.wall);
+        sums.push(p.b.steps / p.a.steps);
         println!(
             "pair {pair:2}: {a} thread(s) {:.3} s, {b} thread(s) {:.3} s, wall {b}/{a} {:.3}, \
              summed steps {b}/{a} {:.3}, reports {:016x} / {:016x}",
-            ra.wall, rb.wall, walls[pair], sums[pair], ra.hash, rb.hash
+            p.a.wall, p.b.wall, walls[pair], sums[pair], p.a.hash, p.b.hash
         );
-        if let Some((wall, copy)) = side {
-            ceilings.push(wall / ((b / a) as f64 * ra.wall));
+        if let Some(wall) = p.ceiling_wall {
+            ceilings.push(wall / ((b / a) as f64 * p.a.wall));
             println!(
                 "         {} copies of the {a}-thread run side by side {wall:.3} s, ceiling {:.3}",
                 b / a,
                 ceilings[pair]
             );
-            if copy.hash != ra.hash {
-                fail("the copies side by side gave other reports than the run alone".into());
-            }
         }
-        if ra.hash != rb.hash {
-            eprintln!(
-                "pair {pair}: the reports differ between {a} and {b} threads (every field but the \
-                 timings should be the same bits)"
-            );
-            std::process::exit(1);
-        }
-        if hashes.first().is_some_and(|&h| h != ra.hash) {
+        if *hash.get_or_insert(p.a.hash) != p.a.hash {
             eprintln!(
                 "pair {pair}: the reports differ from the first pair's (same seed, same run)"
             );
             std::process::exit(1);
         }
-        hashes.push(ra.hash);
-        stages[0].push(ra.stages.clone());
-        stages[1].push(rb.stages.clone());
+        stages[0].push(p.a.stages);
+        stages[1].push(p.b.stages);
     }
-    let (wm, wl, wh) = spread(&walls);
-    let (sm, sl, sh) = spread(&sums);
+    print_ratios(&o, &walls, &sums, &ceilings, hash.unwrap_or_default());
+    print_stages(&o, &stages);
+}
+
+/// The medians (smallest–largest) of B / A over the pairs, and of the ceiling when measured.
+fn print_ratios(o: &Options, walls: &[f64], sums: &[f64], ceilings: &[f64], hash: u64) {
+    let [a, b] = o.threads;
+    let (wm, wl, wh) = spread(walls);
+    let (sm, sl, sh) = spread(sums);
     println!(
         "{b} / {a} threads over {} pairs: wall median {wm:.3} ({wl:.3}–{wh:.3}), summed steps \
-         median {sm:.3} ({sl:.3}–{sh:.3}); every report the same bits ({:016x})",
-        o.pairs, hashes[0]
+         median {sm:.3} ({sl:.3}–{sh:.3}); every report the same bits ({hash:016x})",
+        o.pairs
     );
-    if !ceilings.is_empty() {
-        let (cm, cl, ch) = spread(&ceilings);
-        let over: Vec<f64> = walls.iter().zip(&ceilings).map(|(w, c)| w / c).collect();
-        let (om, ol, oh) = spread(&over);
-        println!(
-            "ceiling ({} copies of the {a}-thread run side by side over {} × its time alone): \
-             median {cm:.3} ({cl:.3}–{ch:.3}); wall {b}/{a} over the pair's ceiling: median \
-             {om:.3} ({ol:.3}–{oh:.3})",
-            b / a,
-            b / a
-        );
+    if ceilings.is_empty() {
+        return;
     }
-    print_stages(&o, &stages);
+    let (cm, cl, ch) = spread(ceilings);
+    let over: Vec<f64> = walls.iter().zip(ceilings).map(|(w, c)| w / c).collect();
+    let (om, ol, oh) = spread(&over);
+    println!(
+        "ceiling ({} copies of the {a}-thread run side by side over {} × its time alone): median \
+         {cm:.3} ({cl:.3}–{ch:.3}); wall {b}/{a} over the pair's ceiling: median {om:.3} \
+         ({ol:.3}–{oh:.3})",
+        b / a,
+        b / a
+    );
 }
 
 /// The stages' seconds per phase, medians over the pairs, `A / B` threads, as a table.
