@@ -106,9 +106,9 @@ pub struct PgsSettings {
     /// [`Precision::F64`]; `pgs:precision=f32`).
     pub precision: Precision,
     /// Measure the natural residual of the result into [`SolveReport::natural_residual`]
-    /// (default true). The measure is a pass over the points in scalar code, about what one
-    /// or two sweeps of the batches cost, so a provider that sweeps an island a few passes at
-    /// a time and never reads it turns it off; the report then holds NaN. The impulses and
+    /// (default true). The measure is one more pass over the points, in scalar code, so a
+    /// provider that sweeps an island a few passes at a time and never reads it turns it off;
+    /// the report then holds NaN. The impulses and
     /// velocities do not depend on it.
     pub natural_residual: bool,
 }

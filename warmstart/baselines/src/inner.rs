@@ -40,7 +40,7 @@ pub(crate) fn non_negative(spec: &str, param: &str, value: Real) -> Result<Real,
 
 /// The PGS solver of a provider's own sweeps: the default settings but for the natural
 /// residual, which no provider reads from its sweeps' report (it stays NaN there) and which
-/// costs about two of a short solve's passes.
+/// costs a scalar pass over the points each solve.
 pub(crate) fn sweeper() -> PgsSolver {
     PgsSolver::with_settings(deepcontact_pgs::PgsSettings {
         natural_residual: false,
