@@ -10,7 +10,9 @@
 //! the stop rule holds) → **store impulses** (write them back, natural-map residual).
 //! [`PgsSolver::solve_again`] runs the last three on the prepared rows of the island solved
 //! last, from another start or with its rows' effective masses scaled (a provider's repeated
-//! sweeps of one island), to the bits of a fresh solve.
+//! sweeps of one island), to the bits of a fresh solve; [`PgsSolver::solve_stages`] solves an
+//! island in stages with the rows' effective masses scaled by each stage's factors (an
+//! over-relaxation schedule), to the bits of one solve per stage on scaled copies.
 //!
 //! **Threads.** An island of [`PgsSettings::parallel_min_points`] points or more (default
 //! 2048) is swept in the domain plan ([`PgsSettings::domains`], default 16;
@@ -59,7 +61,7 @@ mod velocity;
 pub use position::{PgsPositionSettings, PgsPositionSolver};
 pub use registry::{MAX_THREADS, register};
 pub use threads::partition::{DOMAIN_POINTS, MAX_DOMAINS};
-pub use velocity::{LANES, Ordering, PgsSettings, PgsSolver, Precision};
+pub use velocity::{LANES, Ordering, PgsSettings, PgsSolver, Precision, Stage};
 
 /// Errors of this crate (wrapped into [`deepcontact_core::CoreError`] at the trait boundary).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -79,6 +81,15 @@ pub enum PgsError {
     /// built for (or before any solve).
     #[error("solve_again: the solver's plan is not of this island; solve it first")]
     NotPlanned,
+    /// A stage of [`PgsSolver::solve_stages`] whose mass factors are not one finite, positive
+    /// factor per contact point.
+    #[error("stage {stage}: {reason}")]
+    StageScale {
+        /// The stage (0-based).
+        stage: usize,
+        /// What is wrong with its factors.
+        reason: String,
+    },
 }
 
 impl From<PgsError> for deepcontact_core::CoreError {

@@ -35,12 +35,14 @@ mod many;
 mod measures;
 mod plan;
 mod single;
+mod stages;
 mod sweep;
 
 pub(crate) use kernel::{BatchKernel, Island, KernelOp, dispatch};
 pub use layout::LANES;
 pub(crate) use layout::{Batch, Block, Manifold, Row, Segment, Vel};
 pub(crate) use measures::{LaneSweep, Sweep, Verdict, judge};
+pub use stages::Stage;
 pub(crate) use sweep::{Velocities, movable, sweep_batch, sweep_manifold};
 use sweep::{
     apply, apply_tangent, clamp_sym, non_negative, normal_velocity, store, tangent_velocity,
@@ -262,7 +264,10 @@ impl PgsSolver {
     }
 
     /// Stage 1, prepare: copy the problem into rows, manifolds and packed velocities.
-    fn prepare(&mut self, problem: &ContactProblem, start: &[Impulse]) {
+    /// Stage 1: the island's plan (rows from `problem`'s points with `start`, their effective
+    /// masses multiplied by `scale`'s factor when one is given; manifolds, block factors,
+    /// colouring and batches).
+    fn prepare(&mut self, problem: &ContactProblem, start: &[Impulse], scale: Option<&[Real]>) {
         self.reset_plan();
         self.planned_bodies = Some(problem.bodies.len());
         // The chunked plan's grid (none for the plain sweep: not a pass over the points more).
@@ -299,6 +304,12 @@ impl PgsSolver {
                 .zip(start)
                 .map(|(p, s)| Row::of(p, s, raw)),
         );
+        if let Some(scale) = scale {
+            for (row, &f) in self.rows.iter_mut().zip(scale) {
+                row.normal_mass *= f;
+                row.tangent_mass *= f;
+            }
+        }
         self.manifolds.clear();
         for &(s, e) in &problem.manifolds {
             if e == s {
@@ -587,6 +598,19 @@ impl PgsSolver {
         velocities: &[Velocity],
         report: &mut SolveReport,
     ) -> Result<(), CoreError> {
+        self.begin_scaled(problem, settings, impulses, velocities, report, None)
+    }
+
+    /// [`Self::begin`] with the rows' effective masses multiplied by `scale`'s factors.
+    pub(crate) fn begin_scaled(
+        &mut self,
+        problem: &ContactProblem,
+        settings: &SolverSettings,
+        impulses: &[Impulse],
+        velocities: &[Velocity],
+        report: &mut SolveReport,
+        scale: Option<&[Real]>,
+    ) -> Result<(), CoreError> {
         deepcontact_core::solver::begin_solve(
             problem,
             settings,
@@ -595,7 +619,7 @@ impl PgsSolver {
             velocities,
             report,
         )?;
-        self.prepare(problem, impulses);
+        self.prepare(problem, impulses, scale);
         self.warm_start();
         report
             .residual_inf
@@ -776,7 +800,7 @@ mod tests {
     fn colouring_never_puts_two_manifolds_on_one_movable_body_in_a_colour() {
         let problem = pile_problem();
         let mut solver = PgsSolver::new();
-        solver.prepare(&problem, &vec![Impulse::ZERO; problem.len()]);
+        solver.prepare(&problem, &vec![Impulse::ZERO; problem.len()], None);
         assert_eq!(solver.manifolds.len(), problem.manifolds.len());
         let mut colours = solver.colours.clone();
         colours.sort_unstable();
@@ -1023,7 +1047,7 @@ mod tests {
         let runs: Vec<_> = (1..=5)
             .map(|threads| {
                 let mut solver = PgsSolver::with_settings(settings);
-                solver.prepare(&problem, &vec![Impulse::ZERO; problem.len()]);
+                solver.prepare(&problem, &vec![Impulse::ZERO; problem.len()], None);
                 solver.warm_start();
                 let mut report = SolveReport::default();
                 let (it, verdict) = sweep(&mut solver, threads, &stop, &mut report);
@@ -1310,7 +1334,7 @@ mod tests {
                 assert_eq!(reference, lanes);
             }
             let mut solver = PgsSolver::new();
-            solver.prepare(problem, &vec![Impulse::ZERO; problem.len()]);
+            solver.prepare(problem, &vec![Impulse::ZERO; problem.len()], None);
             batched += solver.batches.len();
         }
         assert!(batched > 0, "no batch was formed");
@@ -1457,7 +1481,7 @@ mod tests {
             parallel_min_points: 0,
             ..PgsSettings::default()
         });
-        solver.prepare(&problem, &vec![Impulse::ZERO; problem.len()]);
+        solver.prepare(&problem, &vec![Impulse::ZERO; problem.len()], None);
         for n in 1..=9 {
             let d = &mut solver.domains;
             d.build(

@@ -5,7 +5,7 @@ use deepcontact_core::{
     ContactProblem, CoreError, Impulse, PassCost, Real, SolveReport, SolverSettings, SpecError,
     Velocity, VelocitySolver, WarmStartError,
 };
-use deepcontact_pgs::PgsSolver;
+use deepcontact_pgs::{PgsSolver, Stage};
 
 /// `value`, `spec`'s parameter `param`, if it lies in `range`; else the error naming the range.
 pub(crate) fn in_range(
@@ -114,6 +114,41 @@ impl InnerSolve {
         self.run_with(problem, what, cap, cost, |settings, velocities, report| {
             solver.solve_again(problem, settings, impulses, velocities, report)
         })
+    }
+
+    /// The stages of `stages` in one solve of `problem` by `solver` from `impulses` (in place;
+    /// [`PgsSolver::solve_stages`]), each stage's iterations as given (the caller keeps them
+    /// within its budget and [`Self::new`]'s own cap); `what` names the solve in the error.
+    /// One pass an iteration.
+    pub(crate) fn run_stages(
+        &mut self,
+        solver: &mut PgsSolver,
+        problem: &ContactProblem,
+        impulses: &mut [Impulse],
+        what: &str,
+        stages: &[Stage<'_>],
+    ) -> Result<(), WarmStartError> {
+        self.velocities.clear();
+        self.velocities
+            .resize(problem.bodies.len(), Velocity::default());
+        self.report.clear();
+        self.cost = PassCost::ONE_PER_ITERATION;
+        solver
+            .solve_stages(
+                problem,
+                &self.settings,
+                stages,
+                impulses,
+                &mut self.velocities,
+                &mut self.report,
+            )
+            .map_err(|e| failed(what, &e))
+    }
+
+    /// The iterations [`Self::new`]'s own cap allows in a share of `share` passes, one pass
+    /// an iteration.
+    pub(crate) fn iterations_within(&self, share: u32) -> u32 {
+        PassCost::ONE_PER_ITERATION.iterations_within(share, self.settings.max_iterations)
     }
 
     /// `solve` with at most the iterations of the own cap that `cost` fits in the budget

@@ -32,7 +32,7 @@ use deepcontact_core::{
     CarriedWarmStart, ContactProblem, Impulse, Observation, Real, SolveReport, SpecError,
     WarmStart, WarmStartContext, WarmStartError,
 };
-use deepcontact_pgs::PgsSolver;
+use deepcontact_pgs::{PgsSolver, Stage};
 
 use crate::inner::{InnerSolve, non_negative, sweeper};
 use crate::{AndersonConfig, AndersonWarmStart, BudgetSchedules, ExtrapolatedWarmStart, Schedule};
@@ -204,6 +204,8 @@ pub struct RelaxedWarmStart {
     heavy: Option<ExtrapolatedWarmStart>,
     /// Heavy islands started from the extrapolation.
     extrapolated: u64,
+    /// A schedule's per-point mass factors, one run of the island's points per share.
+    stage_scales: Vec<Real>,
 }
 
 impl RelaxedWarmStart {
@@ -290,6 +292,7 @@ impl RelaxedWarmStart {
             mixed: 0,
             heavy,
             extrapolated: 0,
+            stage_scales: Vec::new(),
         })
     }
 
@@ -453,10 +456,12 @@ impl RelaxedWarmStart {
         }
     }
 
-    /// The sweeps of `schedule` from `out` (in place): each factor's share of
-    /// `cap` (the budget's share; else [`RelaxedConfig::sweeps`]) on a copy relaxed by it,
-    /// until a share stops at the tolerance. Returns the sweeps run and the first and last
-    /// impulse changes (∞-norm) of all of them.
+    /// The sweeps of `schedule` from `out` (in place): each factor's share of `cap` (the
+    /// budget's share; else [`RelaxedConfig::sweeps`]), the island's effective masses scaled
+    /// by it, in one staged solve ([`PgsSolver::solve_stages`]: the bits of one solve per
+    /// share on a copy relaxed by its factor, without the copies and the solves' ends), until
+    /// a share stops at the tolerance. Returns the sweeps run and the first and last impulse
+    /// changes (∞-norm) of all of them.
     fn scheduled(
         &mut self,
         schedule: &Schedule,
@@ -464,39 +469,56 @@ impl RelaxedWarmStart {
         out: &mut [Impulse],
         cap: Option<u32>,
     ) -> Result<(u32, Option<Real>, Option<Real>), WarmStartError> {
-        let (mut sweeps, mut first, mut last) = (0, None, None);
-        for (j, (omega, share)) in schedule
-            .shares(cap.unwrap_or(self.config.sweeps))
-            .enumerate()
-        {
-            // A schedule's factors are its own: `budget_omega` caps `omega` and a policy's.
-            let config = RelaxedConfig {
-                omega,
-                budget_omega: 2.0,
-                ..self.config
-            };
-            // The first share copies the island, checks the copy and builds the solver's plan;
-            // the others rescale the copy's effective masses by their own factors (all in
-            // [1, 2)) and sweep on that plan (`PgsSolver::solve_again`).
-            let what = "over-relaxed sweeps";
-            if j == 0 {
-                relaxed_copy(&mut self.relaxed, problem, &config, None, cap.is_some());
-                self.inner
-                    .run(&mut self.solver, &self.relaxed, out, what, Some(share))?;
-            } else {
-                relax_masses(&mut self.relaxed, problem, &config, None, cap.is_some());
-                self.inner
-                    .run_again(&mut self.solver, &self.relaxed, out, what, Some(share))?;
-            }
-            let r = self.inner.report();
-            sweeps += r.iterations;
-            first = first.or(r.residual_inf.first().copied());
-            last = r.residual_inf.last().copied().or(last);
-            if r.converged {
-                break;
-            }
+        let budget = cap.is_some();
+        // A schedule's factors are its own: `budget_omega` caps `omega` and a policy's.
+        let config = RelaxedConfig {
+            budget_omega: 2.0,
+            ..self.config
+        };
+        // Two-point manifolds split into point rows need the split copy of the island; the
+        // rest is swept on the island itself.
+        let split = splits(&config, budget);
+        if split {
+            split_copy(&mut self.relaxed, problem, true);
         }
-        Ok((sweeps, first, last))
+        let n = problem.len();
+        let mut iterations = [0; Schedule::MAX];
+        let mut count = 0;
+        self.stage_scales.clear();
+        for (omega, share) in schedule.shares(cap.unwrap_or(self.config.sweeps)) {
+            let config = RelaxedConfig { omega, ..config };
+            let start = self.stage_scales.len();
+            self.stage_scales.resize(start + n, 1.0);
+            for_each_factor(problem, &config, None, budget, |i, f| {
+                self.stage_scales[start + i] = f;
+            });
+            iterations[count] = self.inner.iterations_within(share);
+            count += 1;
+        }
+        let mut stages = [Stage {
+            iterations: 0,
+            mass_scale: &[],
+        }; Schedule::MAX];
+        for (j, stage) in stages.iter_mut().take(count).enumerate() {
+            *stage = Stage {
+                iterations: iterations[j],
+                mass_scale: &self.stage_scales[j * n..(j + 1) * n],
+            };
+        }
+        let target = if split { &self.relaxed } else { problem };
+        self.inner.run_stages(
+            &mut self.solver,
+            target,
+            out,
+            "over-relaxed sweeps",
+            &stages[..count],
+        )?;
+        let r = self.inner.report();
+        Ok((
+            r.iterations,
+            r.residual_inf.first().copied(),
+            r.residual_inf.last().copied(),
+        ))
     }
 
     /// The config.
@@ -664,6 +686,12 @@ impl WarmStart for RelaxedWarmStart {
     }
 }
 
+/// Whether `config` splits two-point manifolds into point rows (a factor above 1 for them,
+/// and no pass budget).
+fn splits(config: &RelaxedConfig, budget: bool) -> bool {
+    config.pairs > 1.0 && !budget
+}
+
 /// Fills `relaxed` with `problem` whose rows are over-relaxed: each single-point manifold's
 /// effective masses scaled by its factor (`omegas[i]` when a policy gave them, else
 /// `config.omega`); without a budget and with `config.pairs` > 1, each two-point manifold
@@ -676,10 +704,20 @@ fn relaxed_copy(
     omegas: Option<&[Real]>,
     budget: bool,
 ) {
+    split_copy(relaxed, problem, splits(config, budget));
+    for_each_factor(problem, config, omegas, budget, |i, omega| {
+        let (p, q) = (&mut relaxed.points[i], &problem.points[i]);
+        p.normal_mass = q.normal_mass * omega;
+        p.tangent_mass = q.tangent_mass * omega;
+    });
+}
+
+/// Fills `relaxed` with `problem`, each manifold of more than one point split into one-point
+/// manifolds when `split` (its points keep their effective masses).
+fn split_copy(relaxed: &mut ContactProblem, problem: &ContactProblem, split: bool) {
     relaxed.clear();
     relaxed.bodies.extend_from_slice(&problem.bodies);
     relaxed.points.extend_from_slice(&problem.points);
-    let split = config.pairs > 1.0 && !budget;
     for &(start, end) in &problem.manifolds {
         if end == start + 1 || split {
             for i in start..end {
@@ -693,22 +731,21 @@ fn relaxed_copy(
             relaxed.manifolds.push((start, end));
         }
     }
-    relax_masses(relaxed, problem, config, omegas, budget);
 }
 
-/// Sets the effective masses of `relaxed`, a [`relaxed_copy`] of `problem` with the same
-/// `budget`, to `problem`'s scaled by the factors `config` and `omegas` give (the rows of a
-/// two-point manifold kept whole keep theirs). A schedule's later shares rescale the copy of
-/// its first instead of copying the island again: the masses are the same products, so the
-/// same bits.
-fn relax_masses(
-    relaxed: &mut ContactProblem,
+/// Calls `scale(i, ω_i)` for each point `i` of `problem` that `config` relaxes, ω_i its factor:
+/// a single-point manifold's `omegas[i]` when a policy gave them, else `config.omega`; a split
+/// two-point manifold's `config.pairs` (the rows of one kept whole keep their masses: not
+/// called); under a budget every factor capped at `config.budget_omega`. The relaxed masses
+/// are the point's times ω_i, so the same products wherever they are applied.
+fn for_each_factor(
     problem: &ContactProblem,
     config: &RelaxedConfig,
     omegas: Option<&[Real]>,
     budget: bool,
+    mut scale: impl FnMut(usize, Real),
 ) {
-    let split = config.pairs > 1.0 && !budget;
+    let split = splits(config, budget);
     let cap = if budget { config.budget_omega } else { 2.0 };
     for &(start, end) in &problem.manifolds {
         if end > start + 1 && !split {
@@ -721,9 +758,7 @@ fn relax_masses(
                 None => config.omega,
             }
             .min(cap);
-            let (p, q) = (&mut relaxed.points[i as usize], &problem.points[i as usize]);
-            p.normal_mass = q.normal_mass * omega;
-            p.tangent_mass = q.tangent_mass * omega;
+            scale(i as usize, omega);
         }
     }
 }

@@ -16,7 +16,7 @@ use deepcontact_core::{
     ContactProblem, CoreError, Impulse, SolveReport, SolverSettings, Velocity, VelocitySolver,
 };
 
-use super::{LANES, PgsSolver, Row, Vel};
+use super::{LANES, PgsSolver, Real, Row, Vel};
 use crate::PgsError;
 
 impl PgsSolver {
@@ -48,7 +48,7 @@ impl PgsSolver {
         if !self.planned_for(problem) {
             return Err(PgsError::NotPlanned.into());
         }
-        self.restart(problem, impulses);
+        self.restart(problem, impulses, None);
         self.warm_start();
         let (it, verdict) = self.run(problem.points.len(), settings, report);
         self.end(it, verdict, impulses, velocities, report)?;
@@ -92,13 +92,29 @@ impl PgsSolver {
     }
 
     /// The state a fresh plan of `problem` starts from: the start and the points' effective
-    /// masses in the rows and the batches' lanes (padding lanes' impulses at zero), the
-    /// bodies' free velocities, and the dummy body and sink after them at zero.
-    fn restart(&mut self, problem: &ContactProblem, start: &[Impulse]) {
+    /// masses (multiplied by `scale`'s factors when given, as [`Self::prepare`] does) in the
+    /// rows and the batches' lanes (padding lanes' impulses at zero), the bodies' free
+    /// velocities, and the dummy body and sink after them at zero.
+    pub(super) fn restart(
+        &mut self,
+        problem: &ContactProblem,
+        start: &[Impulse],
+        scale: Option<&[Real]>,
+    ) {
         let raw = self.settings.raw_start;
-        for ((row, p), s) in self.rows.iter_mut().zip(&problem.points).zip(start) {
+        for (i, ((row, p), s)) in self
+            .rows
+            .iter_mut()
+            .zip(&problem.points)
+            .zip(start)
+            .enumerate()
+        {
             (row.ln, row.lt) = Row::start(s, p.friction, raw);
             (row.normal_mass, row.tangent_mass) = (p.normal_mass, p.tangent_mass);
+            if let Some(scale) = scale {
+                row.normal_mass *= scale[i];
+                row.tangent_mass *= scale[i];
+            }
         }
         for batch in &mut self.batches {
             for lane in 0..LANES {
