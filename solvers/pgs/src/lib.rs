@@ -61,7 +61,7 @@ mod velocity;
 pub use position::{PgsPositionSettings, PgsPositionSolver};
 pub use registry::{MAX_THREADS, register};
 pub use threads::partition::{DOMAIN_POINTS, MAX_DOMAINS};
-pub use velocity::{LANES, Ordering, PgsSettings, PgsSolver, Precision, Stage};
+pub use velocity::{LANES, Ordering, OverRelaxation, PgsSettings, PgsSolver, Precision, Stage};
 
 /// Errors of this crate (wrapped into [`deepcontact_core::CoreError`] at the trait boundary).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -81,6 +81,9 @@ pub enum PgsError {
     /// built for (or before any solve).
     #[error("solve_again: the solver's plan is not of this island; solve it first")]
     NotPlanned,
+    /// An over-relaxation schedule that is not one ([`OverRelaxation::new`]).
+    #[error("over-relaxation schedule: {0}")]
+    OverRelaxation(String),
     /// A stage of [`PgsSolver::solve_stages`] whose mass factors are not one finite, positive
     /// factor per contact point.
     #[error("stage {stage}: {reason}")]

@@ -2,14 +2,14 @@
 
 use deepcontact_core::registry::Registry;
 
-use crate::{MAX_DOMAINS, Ordering, PgsSettings, PgsSolver, Precision};
+use crate::{MAX_DOMAINS, Ordering, OverRelaxation, PgsSettings, PgsSolver, Precision};
 
 /// The most threads `pgs:threads=` accepts.
 pub const MAX_THREADS: u64 = 64;
 
 /// Registers `pgs` (parameters `block=true|false`, `order=coloured|sequential`,
 /// `lanes=true|false`, `start=projected|raw`, `threads=1..64`, `parallel_from=POINTS`, `domains=0..63`,
-/// `chunk=BATCHES`, `precision=f64|f32`;
+/// `chunk=BATCHES`, `precision=f64|f32`, `sor=F1/F2/..`;
 /// defaults: [`PgsSettings::default`]).
 pub fn register(registry: &mut Registry) {
     registry.register_solver(
@@ -24,7 +24,9 @@ pub fn register(registry: &mut Registry) {
          chunk=N (batches of 4 contacts per chunk of that colour plan, the unit a thread takes; \
          default 16), \
          precision=f64|f32 (f32: the iterations in single precision, 8 contacts per AVX2 \
-         register, on the calling thread; default f64)",
+         register, on the calling thread; default f64), sor=F1/F2/.. (over-relaxation factors in [1, 2) for \
+         equal shares of a solve's first max_iterations - 1 sweeps, on single-point manifolds; the last sweep \
+         plain; every island solved alone; for fixed budgets; default none)",
         |p| {
             let d = PgsSettings::default();
             let block_solver = p.bool("block", d.block_solver)?;
@@ -66,7 +68,12 @@ pub fn register(registry: &mut Registry) {
                 Some("sequential") => Ordering::Sequential,
                 Some(_) => Ordering::Coloured,
             };
+            let over_relaxation = match p.string("sor") {
+                None => d.over_relaxation,
+                Some(text) => over_relaxation(text).map_err(|reason| p.invalid("sor", text, reason))?,
+            };
             Ok(Box::new(PgsSolver::with_settings(PgsSettings {
+                over_relaxation,
                 block_solver,
                 ordering,
                 lanes,
@@ -81,4 +88,13 @@ pub fn register(registry: &mut Registry) {
             })) as Box<dyn deepcontact_core::VelocitySolver>)
         },
     );
+}
+
+/// The factors of `pgs:sor=F1/F2/..`, or why they are not a schedule.
+fn over_relaxation(text: &str) -> Result<OverRelaxation, String> {
+    let factors = text
+        .split('/')
+        .map(|f| f.trim().parse::<f64>().map_err(|e| format!("`{f}`: {e}")))
+        .collect::<Result<Vec<_>, _>>()?;
+    OverRelaxation::new(&factors).map_err(|e| e.to_string())
 }

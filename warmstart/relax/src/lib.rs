@@ -16,6 +16,10 @@
 //! (towers of boxes, whose points lie in two-point manifolds solved as blocks) get
 //! Anderson-mixed single sweeps instead ([`LEARNED_MIX_BELOW`]).
 //!
+//! The same schedules can run inside the world's solve instead of before it: the solver
+//! `learned-pgs` ([`ScheduledPgs`]) sweeps a budget's first passes by its schedule, with no
+//! second solve of the island to pay for.
+//!
 //! [`register`] adds `learned-sor` (the shipped policy, `models/learned-sor.json`, and the
 //! shipped schedules, `models/learned-schedule.json`, built in; `path=` and `schedules=` read
 //! others).
@@ -39,6 +43,7 @@ mod error;
 mod policy;
 mod registry;
 mod schedule;
+mod solver;
 
 pub use error::RelaxError;
 pub use policy::{FEATURES, FORMAT, PolicyFile, RelaxationPolicy};
@@ -46,3 +51,4 @@ pub use registry::{LEARNED_BUDGET_OMEGA, LEARNED_MIX_BELOW, LEARNED_PAIRS, learn
 pub use schedule::{
     SCHEDULE_FORMAT, ScheduleFile, schedules_from_file, schedules_from_json, shipped_schedules,
 };
+pub use solver::ScheduledPgs;

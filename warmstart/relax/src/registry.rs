@@ -2,10 +2,12 @@
 
 use std::path::Path;
 
+use deepcontact_core::VelocitySolver;
 use deepcontact_core::registry::{ProviderInfo, Registry, SpecError};
+use deepcontact_pgs::PgsSettings;
 use deepcontact_warmstart::{BudgetSchedules, RelaxedConfig, RelaxedWarmStart};
 
-use crate::{RelaxError, RelaxationPolicy, schedules_from_file, shipped_schedules};
+use crate::{RelaxError, RelaxationPolicy, ScheduledPgs, schedules_from_file, shipped_schedules};
 
 /// `sor` with `policy`'s per-point factors, named `name`, under `config` (its `omega` is not
 /// used). The registry's `learned-sor` adds the learned schedules for pass budgets to it
@@ -98,6 +100,43 @@ pub fn register(registry: &mut Registry) {
             Ok(Box::new(
                 learned_sor(name, policy, config)?.with_budget_schedules(schedules),
             ))
+        },
+    );
+    register_learned_pgs(registry);
+}
+
+/// `learned-pgs`: PGS sweeping a budget's first passes by the learned schedule of that budget
+/// ([`ScheduledPgs`]); `schedules=shipped|PATH` as `learned-sor`'s, `threads=N` as `pgs`'s.
+fn register_learned_pgs(registry: &mut Registry) {
+    registry.register_solver(
+        "learned-pgs",
+        "pgs whose first max_iterations - 1 sweeps follow the learned schedule of that pass budget \
+         (models/learned-schedule.json, fitted for learned-sor's sweeps): single-point manifolds \
+         over-relaxed share by share, the last sweep plain, inside the world's own solve; a cap \
+         over twice the table's largest budget (a tolerance solve) is swept plain. \
+         schedules=shipped|PATH, threads=N (as pgs; default 1)",
+        |p| {
+            let schedules = match p.string("schedules") {
+                None | Some("shipped") => shipped_schedules(),
+                Some(path) => schedules_from_file(Path::new(path)),
+            }
+            .map_err(|e| SpecError::Build {
+                spec: "learned-pgs".into(),
+                reason: e.to_string(),
+            })?;
+            let threads = p.u64("threads", 1)?;
+            if !(1..=deepcontact_pgs::MAX_THREADS).contains(&threads) {
+                return Err(p.invalid(
+                    "threads",
+                    &threads.to_string(),
+                    format!("must be 1 to {}", deepcontact_pgs::MAX_THREADS),
+                ));
+            }
+            let settings = PgsSettings {
+                threads: threads as usize,
+                ..PgsSettings::default()
+            };
+            Ok(Box::new(ScheduledPgs::new(settings, schedules)) as Box<dyn VelocitySolver>)
         },
     );
 }

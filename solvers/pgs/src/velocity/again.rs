@@ -50,7 +50,7 @@ impl PgsSolver {
         }
         self.restart(problem, impulses, None);
         self.warm_start();
-        let (it, verdict) = self.run(problem.points.len(), settings, report);
+        let (it, verdict) = self.run_scheduled(problem, settings, report);
         self.end(it, verdict, impulses, velocities, report)?;
         report.seconds = t0.elapsed().as_secs_f64();
         Ok(())

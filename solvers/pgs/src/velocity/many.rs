@@ -21,6 +21,8 @@ pub(crate) const SMALL_POINTS: usize = 32;
 impl PgsSolver {
     /// `solve_many` for PGS: islands of more than [`SMALL_POINTS`] points are solved alone,
     /// the others together ([`Self::solve_small`]); each ends with the bits of its own solve.
+    /// Under an over-relaxation schedule ([`crate::OverRelaxation`]) every island is solved
+    /// alone (the packs sweep plain).
     pub(crate) fn solve_islands(
         &mut self,
         settings: &SolverSettings,
@@ -29,7 +31,8 @@ impl PgsSolver {
         let mut small = std::mem::take(&mut self.small_islands);
         small.clear();
         for (k, i) in islands.iter_mut().enumerate() {
-            if i.problem.points.len() > SMALL_POINTS {
+            let alone = !self.settings.over_relaxation.is_none();
+            if alone || i.problem.points.len() > SMALL_POINTS {
                 i.result = self.solve(i.problem, settings, i.impulses, i.velocities, i.report);
             } else {
                 small.push(k);

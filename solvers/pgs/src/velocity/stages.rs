@@ -39,7 +39,9 @@ impl PgsSolver {
     /// holds the stages together: their iterations summed, every iteration's residuals in
     /// order, the verdict of the last stage run; `impulses`, `velocities` and the natural
     /// residual are those the last stage ended with. Without a stage that sweeps, nothing is
-    /// solved: `impulses` and `velocities` are left as given and the report is empty.
+    /// solved: `impulses` and `velocities` are left as given and the report is empty. The
+    /// stages are the schedule: [`PgsSettings::over_relaxation`](crate::PgsSettings) is not
+    /// applied.
     ///
     /// # Errors
     /// [`PgsError::StageScale`] (as [`CoreError::Solver`]) when a stage's factors are not one
