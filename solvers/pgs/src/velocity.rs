@@ -241,6 +241,9 @@ pub struct PgsSolver {
     pub(crate) threads_used: usize,
     /// The single-precision copy of the island ([`Precision::F32`]).
     single: single::Single,
+    /// The batches' lanes' effective masses (normal, then tangent) under an over-relaxation
+    /// schedule ([`crate::OverRelaxation`]), kept for its shares.
+    batch_masses: Vec<[Real; 2 * LANES]>,
     /// The bodies of the island the plan held was built for ([`Self::solve_again`]; `None`
     /// when the buffers hold something else, e.g. small islands laid out side by side).
     planned_bodies: Option<usize>,

@@ -123,6 +123,7 @@ impl PgsSolver {
             max_iterations: iterations,
             ..*settings
         };
+        self.save_batch_masses();
         let (mut it, mut verdict) = (0, Verdict::Continue);
         for (omega, share) in schedule.shares(settings.max_iterations - 1) {
             self.scale_single_points(problem, omega);
@@ -140,25 +141,51 @@ impl PgsSolver {
         (it, verdict)
     }
 
-    /// The effective masses of the single-point manifolds' rows, in the rows and the batches'
-    /// lanes, set to `problem`'s times `omega` (1: the island's own, bit for bit).
+    /// Sets the single-point manifolds' effective masses, where the sweep reads them, to
+    /// `problem`'s times `omega` (1: the island's own, bit for bit). The plain and chunked plans
+    /// read a batched manifold's from its batch lanes, scaled from the copy
+    /// [`Self::save_batch_masses`] took, and the rest from the rows; the domain plan and a
+    /// plan without batches read every row.
     fn scale_single_points(&mut self, problem: &ContactProblem, omega: Real) {
-        for m in self.manifolds.iter().filter(|m| m.count == 1) {
+        let points = problem.points.len();
+        let rows_only = self.segments.is_empty()
+            || (self.plans_domains(points) && self.settings.precision == crate::Precision::F64);
+        let scale = |rows: &mut [super::Row], m: &super::Manifold| {
             let (r, p) = (
-                &mut self.rows[m.start as usize],
+                &mut rows[m.start as usize],
                 &problem.points[m.start as usize],
             );
             r.normal_mass = p.normal_mass * omega;
             r.tangent_mass = p.tangent_mass * omega;
+        };
+        if rows_only {
+            for m in self.manifolds.iter().filter(|m| m.count == 1) {
+                scale(&mut self.rows, m);
+            }
+            return;
         }
-        for batch in &mut self.batches {
+        // The serial remainder's single-point manifolds (the overflow colour's).
+        for m in self.scratch.iter().filter(|m| m.count == 1) {
+            scale(&mut self.rows, m);
+        }
+        for (batch, base) in self.batches.iter_mut().zip(&self.batch_masses) {
             for lane in 0..LANES {
-                if let Some(r) = self.rows.get(batch.row[lane] as usize) {
-                    batch.normal_mass[lane] = r.normal_mass;
-                    batch.tangent_mass[lane] = r.tangent_mass;
-                }
+                batch.normal_mass[lane] = base[lane] * omega;
+                batch.tangent_mass[lane] = base[LANES + lane] * omega;
             }
         }
+    }
+
+    /// Keeps the batches' lanes' effective masses (the island's own) for
+    /// [`Self::scale_single_points`].
+    fn save_batch_masses(&mut self) {
+        self.batch_masses.clear();
+        self.batch_masses.extend(self.batches.iter().map(|b| {
+            let mut base = [0.0; 2 * LANES];
+            base[..LANES].copy_from_slice(&b.normal_mass);
+            base[LANES..].copy_from_slice(&b.tangent_mass);
+            base
+        }));
     }
 }
 
