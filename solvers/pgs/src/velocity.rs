@@ -38,6 +38,8 @@ mod plan;
 mod single;
 mod stages;
 mod sweep;
+#[cfg(test)]
+mod test_support;
 
 pub(crate) use kernel::{BatchKernel, Island, KernelOp, dispatch};
 pub use layout::LANES;

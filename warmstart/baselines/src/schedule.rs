@@ -7,6 +7,7 @@
 //! (`sor:schedule=1.8/1.5/1.1`); `models/train/schedule.py` fits one per budget.
 
 use deepcontact_core::{Real, SpecError};
+use deepcontact_pgs::OverRelaxation;
 
 /// Factors for equal shares of the over-relaxed sweeps, in sweep order (empty: the provider's
 /// constant ω or its policy's factors).
@@ -22,46 +23,38 @@ use deepcontact_core::{Real, SpecError};
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Schedule {
-    factors: [Real; Schedule::MAX],
-    len: usize,
+    /// The factors, as the solver's own schedule holds them (the same shares).
+    factors: OverRelaxation,
 }
 
 impl Schedule {
     /// Most factors of a schedule.
-    pub const MAX: usize = 8;
+    pub const MAX: usize = OverRelaxation::MAX;
 
     /// No schedule.
     pub const NONE: Self = Self {
-        factors: [0.0; Self::MAX],
-        len: 0,
+        factors: OverRelaxation::NONE,
     };
 
     /// The schedule of `factors` (at most [`Self::MAX`], each in [1, 2); `spec` names the
     /// provider in the error).
     pub fn new(spec: &str, factors: &[Real]) -> Result<Self, SpecError> {
-        let text = || {
-            factors
-                .iter()
-                .map(|f| f.to_string())
-                .collect::<Vec<_>>()
-                .join("/")
-        };
         let invalid = |reason: String| SpecError::InvalidParameter {
             spec: spec.into(),
             param: "schedule".into(),
-            value: text(),
+            value: factors
+                .iter()
+                .map(|f| f.to_string())
+                .collect::<Vec<_>>()
+                .join("/"),
             reason,
         };
-        if factors.is_empty() || factors.len() > Self::MAX {
+        if factors.is_empty() {
             return Err(invalid(format!("must hold 1 to {} factors", Self::MAX)));
         }
-        if let Some(f) = factors.iter().find(|f| !(1.0..2.0).contains(*f)) {
-            return Err(invalid(format!("factor {f} must be in [1, 2)")));
-        }
-        let mut s = Self::NONE;
-        s.factors[..factors.len()].copy_from_slice(factors);
-        s.len = factors.len();
-        Ok(s)
+        OverRelaxation::new(factors)
+            .map(|factors| Self { factors })
+            .map_err(|e| invalid(e.to_string()))
     }
 
     /// Parses `a/b/c` (factors separated by `/`; `spec` names the provider in the error).
@@ -81,25 +74,25 @@ impl Schedule {
 
     /// The factors, in sweep order (empty for [`Self::NONE`]).
     pub fn factors(&self) -> &[Real] {
-        &self.factors[..self.len]
+        self.factors.factors()
     }
 
     /// Whether this is [`Self::NONE`].
     pub fn is_empty(&self) -> bool {
-        self.len == 0
+        self.factors.is_none()
+    }
+
+    /// The same factors as the PGS solver's own schedule ([`OverRelaxation`]: over-relaxed
+    /// shares inside its solve).
+    pub fn over_relaxation(&self) -> OverRelaxation {
+        self.factors
     }
 
     /// Each factor with its share of `sweeps`: factor `j` of `n` runs sweeps
     /// `⌊sweeps·j/n⌋ .. ⌊sweeps·(j+1)/n⌋`, so the shares differ by at most one sweep, the later
     /// ones the longer; a factor whose share is empty (fewer sweeps than factors) is skipped.
     pub fn shares(&self, sweeps: u32) -> impl Iterator<Item = (Real, u32)> + '_ {
-        let n = self.len as u64;
-        let edge = move |j: u64| (u64::from(sweeps) * j / n) as u32;
-        self.factors()
-            .iter()
-            .enumerate()
-            .map(move |(j, &f)| (f, edge(j as u64 + 1) - edge(j as u64)))
-            .filter(|&(_, share)| share > 0)
+        self.factors.shares(sweeps)
     }
 }
 

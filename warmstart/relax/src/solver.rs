@@ -44,8 +44,7 @@ impl ScheduledPgs {
         }
         self.schedules
             .for_pass_budget(max_iterations - 1)
-            .and_then(|s| OverRelaxation::new(s.factors()).ok())
-            .unwrap_or(OverRelaxation::NONE)
+            .map_or(OverRelaxation::NONE, |s| s.over_relaxation())
     }
 
     /// Sets the PGS's schedule for a solve capped at `max_iterations`.

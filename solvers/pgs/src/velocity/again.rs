@@ -145,17 +145,11 @@ impl PgsSolver {
 mod tests {
     use super::*;
     use crate::{PgsSettings, Precision};
-    use deepcontact_core::{CarriedWarmStart, WorldSettings, scene};
+    use deepcontact_core::scene;
 
-    /// The largest islands of `scene` after `steps` steps (the last step's problems).
+    /// The largest islands of `scene` after `steps` steps (up to three, of more than 8 points).
     fn islands(scene: scene::Scene, steps: usize) -> Vec<ContactProblem> {
-        let mut world = scene.build(WorldSettings::default()).unwrap();
-        let (mut s, mut p) = (PgsSolver::new(), crate::PgsPositionSolver::new());
-        for _ in 0..steps {
-            world.step(&mut CarriedWarmStart, &mut s, &mut p).unwrap();
-        }
-        let mut problems = world.last_problems().to_vec();
-        problems.sort_by_key(|p| std::cmp::Reverse(p.len()));
+        let mut problems = super::super::test_support::islands(scene, steps);
         problems.truncate(3);
         problems.retain(|p| p.len() > 8);
         assert!(!problems.is_empty(), "an island with contacts");
@@ -206,18 +200,9 @@ mod tests {
         };
         run.unwrap();
         assert_eq!(report.iterations, 7, "the sweeps ran");
-        impulses
-            .iter()
-            .flat_map(|i| [i.normal.to_bits(), i.tangent.to_bits()])
-            .chain(velocities.iter().flat_map(|v| {
-                [
-                    v.linear.x.to_bits(),
-                    v.linear.y.to_bits(),
-                    v.angular.to_bits(),
-                ]
-            }))
-            .chain([report.natural_residual.to_bits()])
-            .collect()
+        let mut bits = super::super::test_support::solution_bits(&impulses, &velocities);
+        bits.push(report.natural_residual.to_bits());
+        bits
     }
 
     #[test]

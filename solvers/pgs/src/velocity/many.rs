@@ -200,6 +200,40 @@ mod tests {
     }
 
     #[test]
+    fn under_an_over_relaxation_schedule_every_island_is_solved_alone() {
+        let steps = islands_by_step(61);
+        let problems = &steps[60];
+        assert!(
+            problems.iter().filter(|p| p.len() <= SMALL_POINTS).count() >= 2,
+            "small islands that would be packed"
+        );
+        let settings = crate::PgsSettings {
+            over_relaxation: crate::OverRelaxation::new(&[1.7]).unwrap(),
+            ..crate::PgsSettings::default()
+        };
+        let stop = SolverSettings {
+            max_iterations: 6,
+            tolerance: 0.0,
+            ..SolverSettings::default()
+        };
+        let zeros = |p: &ContactProblem| vec![Impulse::ZERO; p.len()];
+        let mut scheduled = PgsSolver::with_settings(settings);
+        let together = solved_many(&mut scheduled, problems, &stop, zeros);
+        assert_eq!(
+            together,
+            solved_alone(&mut scheduled, problems, &stop, zeros)
+        );
+        // The schedule reached the small islands: plain PGS ends elsewhere on them.
+        let plain = solved_many(&mut PgsSolver::new(), problems, &stop, zeros);
+        let differ = problems
+            .iter()
+            .zip(together.iter().zip(&plain))
+            .filter(|(p, (a, b))| p.len() <= SMALL_POINTS && a != b)
+            .count();
+        assert!(differ > 0, "no small island was over-relaxed");
+    }
+
+    #[test]
     fn small_islands_solved_together_end_with_the_bits_of_their_own_solves() {
         let steps = islands_by_step(60);
         let start = |p: &ContactProblem| -> Vec<Impulse> {

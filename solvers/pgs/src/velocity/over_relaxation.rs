@@ -193,21 +193,9 @@ impl PgsSolver {
 mod tests {
     use super::*;
     use crate::{PgsSettings, Precision};
-    use deepcontact_core::{
-        CarriedWarmStart, Impulse, IslandSolve, Velocity, VelocitySolver, WorldSettings, scene,
-    };
+    use deepcontact_core::{Impulse, Velocity, VelocitySolver, scene};
 
-    /// Every island of `scene` after `steps` steps of carried impulses, largest first.
-    fn islands(scene: scene::Scene, steps: usize) -> Vec<ContactProblem> {
-        let mut world = scene.build(WorldSettings::default()).unwrap();
-        let (mut s, mut p) = (PgsSolver::new(), crate::PgsPositionSolver::new());
-        for _ in 0..steps {
-            world.step(&mut CarriedWarmStart, &mut s, &mut p).unwrap();
-        }
-        let mut problems = world.last_problems().to_vec();
-        problems.sort_by_key(|p| std::cmp::Reverse(p.len()));
-        problems
-    }
+    use super::super::test_support::{islands, solution_bits};
 
     /// The bits of a solve of `problem` from zero impulses at `cap` sweeps and `tolerance`:
     /// impulses, velocities, iterations, natural residual.
@@ -234,21 +222,11 @@ mod tests {
             assert_eq!(r.normal_mass.to_bits(), p.normal_mass.to_bits());
             assert_eq!(r.tangent_mass.to_bits(), p.tangent_mass.to_bits());
         }
-        let bits = impulses
-            .iter()
-            .flat_map(|i| [i.normal.to_bits(), i.tangent.to_bits()])
-            .chain(velocities.iter().flat_map(|v| {
-                [
-                    v.linear.x.to_bits(),
-                    v.linear.y.to_bits(),
-                    v.angular.to_bits(),
-                ]
-            }))
-            .chain([
-                u64::from(report.iterations),
-                report.natural_residual.to_bits(),
-            ])
-            .collect();
+        let mut bits = solution_bits(&impulses, &velocities);
+        bits.extend([
+            u64::from(report.iterations),
+            report.natural_residual.to_bits(),
+        ]);
         (bits, report)
     }
 
@@ -306,52 +284,6 @@ mod tests {
             relaxed.natural_residual,
             plain.natural_residual
         );
-    }
-
-    #[test]
-    fn under_a_schedule_every_island_of_a_step_gets_its_own_solve() {
-        let problems = islands(scene::pile(12345, 100).unwrap(), 61);
-        assert!(
-            problems
-                .iter()
-                .filter(|p| p.len() <= super::super::many::SMALL_POINTS)
-                .count()
-                >= 2,
-            "small islands that would be packed"
-        );
-        let settings = with(PgsSettings::default(), &[1.7]);
-        let stop = SolverSettings {
-            max_iterations: 6,
-            tolerance: 0.0,
-            ..SolverSettings::default()
-        };
-        let mut impulses: Vec<Vec<Impulse>> = problems
-            .iter()
-            .map(|p| vec![Impulse::ZERO; p.len()])
-            .collect();
-        let mut velocities: Vec<Vec<Velocity>> = problems
-            .iter()
-            .map(|p| vec![Velocity::default(); p.bodies.len()])
-            .collect();
-        let mut reports = vec![SolveReport::default(); problems.len()];
-        let mut all: Vec<IslandSolve<'_>> = problems
-            .iter()
-            .zip(&mut impulses)
-            .zip(&mut velocities)
-            .zip(&mut reports)
-            .map(|(((p, i), v), r)| IslandSolve::new(p, i, v, r))
-            .collect();
-        PgsSolver::with_settings(settings).solve_many(&stop, &mut all);
-        assert!(all.iter().all(|i| i.result.is_ok()));
-        drop(all);
-        for (k, problem) in problems.iter().enumerate() {
-            let (alone, _) = solved(settings, problem, 6, 0.0);
-            let together: Vec<u64> = impulses[k]
-                .iter()
-                .flat_map(|i| [i.normal.to_bits(), i.tangent.to_bits()])
-                .collect();
-            assert_eq!(together, alone[..together.len()], "island {k}");
-        }
     }
 
     #[test]

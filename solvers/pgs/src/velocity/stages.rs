@@ -133,21 +133,11 @@ fn check_stages(problem: &ContactProblem, stages: &[Stage<'_>]) -> Result<(), Pg
 mod tests {
     use super::*;
     use crate::{PgsSettings, Precision};
-    use deepcontact_core::{CarriedWarmStart, VelocitySolver, WorldSettings, scene};
+    use deepcontact_core::{VelocitySolver, scene};
 
     /// The largest island of `scene` after `steps` steps of carried impulses.
     fn island(scene: scene::Scene, steps: usize) -> ContactProblem {
-        let mut world = scene.build(WorldSettings::default()).unwrap();
-        let (mut s, mut p) = (PgsSolver::new(), crate::PgsPositionSolver::new());
-        for _ in 0..steps {
-            world.step(&mut CarriedWarmStart, &mut s, &mut p).unwrap();
-        }
-        let problem = world
-            .last_problems()
-            .iter()
-            .max_by_key(|p| p.len())
-            .unwrap()
-            .clone();
+        let problem = super::super::test_support::islands(scene, steps).remove(0);
         assert!(problem.len() > 8, "an island with contacts");
         problem
     }
@@ -181,18 +171,9 @@ mod tests {
 
     /// The bits of impulses, velocities and the summed iterations.
     fn bits(impulses: &[Impulse], velocities: &[Velocity], iterations: u32) -> Vec<u64> {
-        impulses
-            .iter()
-            .flat_map(|i| [i.normal.to_bits(), i.tangent.to_bits()])
-            .chain(velocities.iter().flat_map(|v| {
-                [
-                    v.linear.x.to_bits(),
-                    v.linear.y.to_bits(),
-                    v.angular.to_bits(),
-                ]
-            }))
-            .chain([u64::from(iterations)])
-            .collect()
+        let mut bits = super::super::test_support::solution_bits(impulses, velocities);
+        bits.push(u64::from(iterations));
+        bits
     }
 
     /// The stages solved one by one on scaled copies (`solve`, then `solve_again`).
