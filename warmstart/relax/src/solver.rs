@@ -39,7 +39,7 @@ impl ScheduledPgs {
     /// The schedule a solve capped at `max_iterations` sweeps by.
     pub fn schedule_for(&self, max_iterations: u32) -> OverRelaxation {
         let largest = self.schedules.entries().last().map_or(0, |&(k, _)| k);
-        if max_iterations < 2 || max_iterations > 2 * largest {
+        if max_iterations < 2 || max_iterations > largest.saturating_mul(2) {
             return OverRelaxation::NONE;
         }
         self.schedules
