@@ -119,15 +119,17 @@ impl PgsSolver {
         if schedule.is_none() || settings.max_iterations < 2 {
             return self.run(points, settings, report);
         }
-        let stage = |iterations| SolverSettings {
+        // One solve: the stop rule's least iterations count from its first sweep, not a share's.
+        let stage = |iterations, done: u32| SolverSettings {
             max_iterations: iterations,
+            min_iterations: settings.min_iterations.saturating_sub(done).max(1),
             ..*settings
         };
         self.save_batch_masses();
         let (mut it, mut verdict) = (0, Verdict::Continue);
         for (omega, share) in schedule.shares(settings.max_iterations - 1) {
             self.scale_single_points(problem, omega);
-            let (i, v) = self.run(points, &stage(share), report);
+            let (i, v) = self.run(points, &stage(share, it), report);
             (it, verdict) = (it + i, v);
             if verdict != Verdict::Continue {
                 break;
@@ -135,7 +137,7 @@ impl PgsSolver {
         }
         self.scale_single_points(problem, 1.0);
         if verdict == Verdict::Continue {
-            let (i, v) = self.run(points, &stage(settings.max_iterations - it), report);
+            let (i, v) = self.run(points, &stage(settings.max_iterations - it, it), report);
             (it, verdict) = (it + i, v);
         }
         (it, verdict)
@@ -197,16 +199,19 @@ mod tests {
 
     use super::super::test_support::{islands, solution_bits};
 
-    /// The bits of a solve of `problem` from zero impulses at `cap` sweeps and `tolerance`:
+    /// The bits of a solve of `problem` from zero impulses at `cap` sweeps, `tolerance` and
+    /// `least` iterations at least:
     /// impulses, velocities, iterations, natural residual.
     fn solved(
         settings: PgsSettings,
         problem: &ContactProblem,
         cap: u32,
         tolerance: Real,
+        least: u32,
     ) -> (Vec<u64>, SolveReport) {
         let stop = SolverSettings {
             max_iterations: cap,
+            min_iterations: least,
             tolerance,
             ..SolverSettings::default()
         };
@@ -255,16 +260,25 @@ mod tests {
         };
         for settings in [PgsSettings::default(), f32, chunked] {
             for problem in [&circles, &boxes] {
-                // Eight sweeps in three shares and a plain one; then a stop inside a share.
-                for (cap, tolerance) in [(8, 0.0), (200, 1e-2)] {
-                    let (plain, report) = solved(settings, problem, cap, tolerance);
-                    let (ones, _) =
-                        solved(with(settings, &[1.0, 1.0, 1.0]), problem, cap, tolerance);
+                // Eight sweeps in three shares and a plain one; a stop inside a share; a stop
+                // whose least iterations (20) span shares of 13.
+                for (cap, tolerance, least) in [(8, 0.0, 1), (200, 1e-2, 1), (40, 1e3, 20)] {
+                    let (plain, report) = solved(settings, problem, cap, tolerance, least);
+                    let (ones, _) = solved(
+                        with(settings, &[1.0, 1.0, 1.0]),
+                        problem,
+                        cap,
+                        tolerance,
+                        least,
+                    );
                     assert_eq!(ones, plain, "cap {cap}");
-                    if tolerance > 0.0 {
+                    let it = report.iterations;
+                    if cap == 200 {
                         // 199 sweeps in shares of 66, 66 and 67, then the plain one.
-                        let it = report.iterations;
                         assert!(report.converged && it < 199, "stopped in a share: {it}");
+                    }
+                    if least > 1 {
+                        assert!(report.converged && it == least, "{it} iterations");
                     }
                 }
             }
@@ -275,8 +289,14 @@ mod tests {
     fn an_over_relaxed_schedule_ends_a_pile_nearer_a_solution_in_eight_passes() {
         let problem = islands(scene::pile(12345, 100).unwrap(), 200).remove(0);
         assert!(problem.len() > 100, "the settled pile's island");
-        let (_, plain) = solved(PgsSettings::default(), &problem, 8, 0.0);
-        let (_, relaxed) = solved(with(PgsSettings::default(), &[1.8, 1.4]), &problem, 8, 0.0);
+        let (_, plain) = solved(PgsSettings::default(), &problem, 8, 0.0, 1);
+        let (_, relaxed) = solved(
+            with(PgsSettings::default(), &[1.8, 1.4]),
+            &problem,
+            8,
+            0.0,
+            1,
+        );
         assert_eq!(relaxed.iterations, 8, "the budget, no more");
         assert!(
             relaxed.natural_residual < 0.8 * plain.natural_residual,
