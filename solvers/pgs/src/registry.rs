@@ -70,7 +70,8 @@ pub fn register(registry: &mut Registry) {
             };
             let over_relaxation = match p.string("sor") {
                 None => d.over_relaxation,
-                Some(text) => over_relaxation(text).map_err(|reason| p.invalid("sor", text, reason))?,
+                Some(text) => OverRelaxation::parse(text)
+                    .map_err(|e| p.invalid("sor", text, e.to_string()))?,
             };
             Ok(Box::new(PgsSolver::with_settings(PgsSettings {
                 over_relaxation,
@@ -88,13 +89,4 @@ pub fn register(registry: &mut Registry) {
             })) as Box<dyn deepcontact_core::VelocitySolver>)
         },
     );
-}
-
-/// The factors of `pgs:sor=F1/F2/..`, or why they are not a schedule.
-fn over_relaxation(text: &str) -> Result<OverRelaxation, String> {
-    let factors = text
-        .split('/')
-        .map(|f| f.trim().parse::<f64>().map_err(|e| format!("`{f}`: {e}")))
-        .collect::<Result<Vec<_>, _>>()?;
-    OverRelaxation::new(&factors).map_err(|e| e.to_string())
 }

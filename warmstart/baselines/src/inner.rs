@@ -128,11 +128,7 @@ impl InnerSolve {
         what: &str,
         stages: &[Stage<'_>],
     ) -> Result<(), WarmStartError> {
-        self.velocities.clear();
-        self.velocities
-            .resize(problem.bodies.len(), Velocity::default());
-        self.report.clear();
-        self.cost = PassCost::ONE_PER_ITERATION;
+        self.reset(problem, PassCost::ONE_PER_ITERATION);
         solver
             .solve_stages(
                 problem,
@@ -143,6 +139,16 @@ impl InnerSolve {
                 &mut self.report,
             )
             .map_err(|e| failed(what, &e))
+    }
+
+    /// Clears the velocity buffer (one per body of `problem`) and the report before a solve
+    /// whose iteration weighs `cost`.
+    fn reset(&mut self, problem: &ContactProblem, cost: PassCost) {
+        self.velocities.clear();
+        self.velocities
+            .resize(problem.bodies.len(), Velocity::default());
+        self.report.clear();
+        self.cost = cost;
     }
 
     /// The iterations [`Self::new`]'s own cap allows in a share of `share` passes, one pass
@@ -162,11 +168,7 @@ impl InnerSolve {
         cost: PassCost,
         solve: impl FnOnce(&SolverSettings, &mut [Velocity], &mut SolveReport) -> Result<(), CoreError>,
     ) -> Result<(), WarmStartError> {
-        self.velocities.clear();
-        self.velocities
-            .resize(problem.bodies.len(), Velocity::default());
-        self.report.clear();
-        self.cost = cost;
+        self.reset(problem, cost);
         let own = self.settings.max_iterations;
         let iterations = cap.map_or(own, |budget| cost.iterations_within(budget, own));
         if iterations == 0 {

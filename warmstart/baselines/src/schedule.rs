@@ -59,17 +59,14 @@ impl Schedule {
 
     /// Parses `a/b/c` (factors separated by `/`; `spec` names the provider in the error).
     pub fn parse(spec: &str, text: &str) -> Result<Self, SpecError> {
-        let factors = text
-            .split('/')
-            .map(|f| f.trim().parse::<Real>())
-            .collect::<Result<Vec<_>, _>>()
+        OverRelaxation::parse(text)
+            .map(|factors| Self { factors })
             .map_err(|e| SpecError::InvalidParameter {
                 spec: spec.into(),
                 param: "schedule".into(),
                 value: text.into(),
-                reason: format!("factors separated by '/': {e}"),
-            })?;
-        Self::new(spec, &factors)
+                reason: e.to_string(),
+            })
     }
 
     /// The factors, in sweep order (empty for [`Self::NONE`]).

@@ -188,17 +188,20 @@ fn learned_pgs_is_pgs_under_the_schedule_of_the_budget() {
 #[test]
 fn learned_pgs_refuses_bad_parameters_with_typed_errors() {
     let r = registry();
-    for spec in [
-        "learned-pgs:threads=0",
-        "learned-pgs:schedules=/no/such/schedules.json",
-        "pgs:sor=2.1",
-        "pgs:sor=1.8/x",
+    for (spec, names) in [
+        ("learned-pgs:threads=0", "threads"),
+        (
+            "learned-pgs:schedules=/no/such/schedules.json",
+            "/no/such/schedules.json",
+        ),
+        ("pgs:sor=2.1", "factor 2.1 is not in [1, 2)"),
+        ("pgs:sor=1.8/x", "`x`"),
     ] {
         let e = r
             .build_solver(spec)
             .err()
             .unwrap_or_else(|| panic!("{spec}"));
-        assert!(!e.to_string().is_empty(), "{spec}");
+        assert!(e.to_string().contains(names), "{spec}: {e}");
     }
     assert!(r.build_solver("pgs:sor=1.8/1.4/1.1").is_ok());
     assert_eq!(

@@ -30,8 +30,8 @@ impl PgsSolver {
     ) {
         let mut small = std::mem::take(&mut self.small_islands);
         small.clear();
+        let alone = !self.settings.over_relaxation.is_none();
         for (k, i) in islands.iter_mut().enumerate() {
-            let alone = !self.settings.over_relaxation.is_none();
             if alone || i.problem.points.len() > SMALL_POINTS {
                 i.result = self.solve(i.problem, settings, i.impulses, i.velocities, i.report);
             } else {

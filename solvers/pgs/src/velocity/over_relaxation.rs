@@ -73,6 +73,22 @@ impl OverRelaxation {
         Ok(schedule)
     }
 
+    /// Parses `a/b/c` (factors separated by `/`).
+    ///
+    /// # Errors
+    /// [`PgsError::OverRelaxation`] for a factor that is not a number, and as [`Self::new`].
+    pub fn parse(text: &str) -> Result<Self, PgsError> {
+        let factors = text
+            .split('/')
+            .map(|f| {
+                f.trim().parse::<Real>().map_err(|e| {
+                    PgsError::OverRelaxation(format!("factors separated by '/': `{f}`: {e}"))
+                })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Self::new(&factors)
+    }
+
     /// The factors, in order.
     pub fn factors(&self) -> &[Real] {
         &self.factors[..self.len]
