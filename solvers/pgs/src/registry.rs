@@ -26,7 +26,7 @@ pub fn register(registry: &mut Registry) {
          precision=f64|f32 (f32: the iterations in single precision, 8 contacts per AVX2 \
          register, on the calling thread; default f64), sor=F1/F2/.. (over-relaxation factors in [1, 2) for \
          equal shares of a solve's first max_iterations - 1 sweeps, on single-point manifolds; the last sweep \
-         plain; every island solved alone; for fixed budgets; default none)",
+         plain; for fixed budgets; default none)",
         |p| {
             let d = PgsSettings::default();
             let block_solver = p.bool("block", d.block_solver)?;

@@ -10,8 +10,9 @@
 //! measures are folded as its own batches' would be (padding lanes measure exactly zero),
 //! and its impulses and velocities are taken back when its stop rule, a divergence or the cap
 //! ends it (its lanes are swept on with the others and their later values dropped), so each
-//! ends with the bits of its own solve. Islands not swept as batches only (two-point
-//! manifolds, other options) are solved alone.
+//! ends with the bits of its own solve. Under an over-relaxation schedule every lane's
+//! effective masses change at the same sweeps, as each island's own would. Islands not swept
+//! as batches only (two-point manifolds, other options) are solved alone.
 //!
 //! [`VelocitySolver::solve_many`]: deepcontact_core::VelocitySolver::solve_many
 
@@ -20,8 +21,9 @@ use std::time::Instant;
 use deepcontact_core::{IslandSolve, SolveReport, SolverSettings};
 
 use crate::velocity::many::Progress;
+use crate::velocity::over_relaxation::scale_lanes;
 use crate::velocity::{
-    Batch, BatchKernel, Island, KernelOp, LANES, LaneSweep, PgsSolver, Sweep, Vel, Verdict,
+    Batch, BatchKernel, Island, KernelOp, LANES, LaneSweep, PgsSolver, Real, Sweep, Vel, Verdict,
     dispatch,
 };
 
@@ -123,7 +125,7 @@ impl PgsSolver {
                     Kind::Pack(solver.batches.iter().map(Batch::width).max().unwrap_or(0))
                 }
                 Ok(()) => {
-                    let (it, verdict) = solver.run(points, settings, i.report);
+                    let (it, verdict) = solver.run_scheduled(i.problem, settings, i.report);
                     i.result = solver.end(it, verdict, i.impulses, i.velocities, i.report);
                     Kind::Done
                 }
@@ -161,6 +163,13 @@ impl PgsSolver {
         pack: &Pack,
     ) {
         let (split, offsets) = self.lay_out(solvers, pack);
+        // Under a schedule the packed lanes' masses are scaled share by share from a copy.
+        if self.settings.over_relaxation.is_none() {
+            self.batch_masses.clear();
+        } else {
+            self.save_batch_masses();
+        }
+        let masses = std::mem::take(&mut self.batch_masses);
         let outcomes = dispatch(
             self.arch,
             PackLoop {
@@ -172,8 +181,10 @@ impl PgsSolver {
                 islands,
                 group,
                 settings,
+                masses: &masses,
             },
         );
+        self.batch_masses = masses;
         for (m, (it, verdict)) in pack.members().iter().zip(outcomes) {
             let i = &mut islands[group[m.island]];
             let solver = &mut solvers[m.island];
@@ -241,6 +252,9 @@ struct PackLoop<'a, 'i> {
     islands: &'a mut [IslandSolve<'i>],
     group: &'a [usize],
     settings: &'a SolverSettings,
+    /// The packed batches' own effective masses ([`PgsSolver::save_batch_masses`]), scaled
+    /// into them share by share under the solver's [`crate::OverRelaxation`].
+    masses: &'a [[Real; 2 * LANES]],
 }
 
 impl KernelOp for PackLoop<'_, '_> {
@@ -258,11 +272,30 @@ impl KernelOp for PackLoop<'_, '_> {
         let (batches_a, batches_b) = batches.split_at_mut(self.split.0);
         let (vel_a, vel_b) = vel.split_at_mut(self.split.1);
         let contact = self.settings.norm == deepcontact_core::ResidualNorm::Contact;
+        // As `run_scheduled`: every live island of the pack has run the same sweeps, so the
+        // shares of the first `max_iterations − 1` change the masses of all lanes at once.
+        let schedule = self.pack.settings.over_relaxation;
+        let cap = self.settings.max_iterations;
+        let scheduled = !schedule.is_none() && cap >= 2;
+        let (masses_a, masses_b) = if scheduled {
+            self.masses.split_at(self.split.0)
+        } else {
+            (&[][..], &[][..])
+        };
+        let mut shares = schedule.shares(if scheduled { cap - 1 } else { 0 });
+        let (mut left, mut relaxed) = (0u32, scheduled);
         loop {
             let (live_a, live_b) = (live[0] > 0, live[1] > 0);
             if !(live_a || live_b) {
                 break;
             }
+            while relaxed && left == 0 {
+                let (omega, sweeps) = shares.next().unwrap_or((1.0, 0));
+                scale_lanes(batches_a, masses_a, omega);
+                scale_lanes(batches_b, masses_b, omega);
+                (left, relaxed) = (sweeps, sweeps > 0);
+            }
+            left = left.saturating_sub(1);
             let (mut la, mut lb) = (LaneSweep::default(), LaneSweep::default());
             let (a, b) = (
                 island(live_a, &mut *batches_a, &mut *vel_a, &mut la),

@@ -20,9 +20,8 @@ pub(crate) const SMALL_POINTS: usize = 32;
 
 impl PgsSolver {
     /// `solve_many` for PGS: islands of more than [`SMALL_POINTS`] points are solved alone,
-    /// the others together ([`Self::solve_small`]); each ends with the bits of its own solve.
-    /// Under an over-relaxation schedule ([`crate::OverRelaxation`]) every island is solved
-    /// alone (the packs sweep plain).
+    /// the others together ([`Self::solve_small`]); each ends with the bits of its own solve,
+    /// under an over-relaxation schedule ([`crate::OverRelaxation`]) too.
     pub(crate) fn solve_islands(
         &mut self,
         settings: &SolverSettings,
@@ -30,9 +29,8 @@ impl PgsSolver {
     ) {
         let mut small = std::mem::take(&mut self.small_islands);
         small.clear();
-        let alone = !self.settings.over_relaxation.is_none();
         for (k, i) in islands.iter_mut().enumerate() {
-            if alone || i.problem.points.len() > SMALL_POINTS {
+            if i.problem.points.len() > SMALL_POINTS {
                 i.result = self.solve(i.problem, settings, i.impulses, i.velocities, i.report);
             } else {
                 small.push(k);
@@ -200,37 +198,81 @@ mod tests {
     }
 
     #[test]
-    fn under_an_over_relaxation_schedule_every_island_is_solved_alone() {
+    fn small_islands_packed_under_an_over_relaxation_schedule_end_with_the_bits_of_their_own_solves()
+     {
+        // A step's islands (small ones packed, the rest alone) and 19 one-point islands (two
+        // full packs and part of a third), under a schedule of three factors, from starts that
+        // stop them at different sweeps: inside a share, at the cap, after a one-sweep cap.
         let steps = islands_by_step(61);
+        let ones: Vec<ContactProblem> = steps
+            .iter()
+            .flatten()
+            .filter(|p| p.len() == 1)
+            .take(19)
+            .cloned()
+            .collect();
+        assert_eq!(ones.len(), 19);
         let problems = &steps[60];
         assert!(
             problems.iter().filter(|p| p.len() <= SMALL_POINTS).count() >= 2,
-            "small islands that would be packed"
+            "small islands to pack"
         );
         let settings = crate::PgsSettings {
-            over_relaxation: crate::OverRelaxation::new(&[1.7]).unwrap(),
+            over_relaxation: crate::OverRelaxation::new(&[1.8, 1.5, 1.2]).unwrap(),
             ..crate::PgsSettings::default()
         };
-        let stop = SolverSettings {
-            max_iterations: 6,
-            tolerance: 0.0,
+        let start = |p: &ContactProblem| -> Vec<Impulse> {
+            (0..p.len())
+                .map(|i| {
+                    let x = p.bodies[p.points[i].body_b as usize].position.x;
+                    Impulse::new(0.3 * (7.0 * x).fract().abs(), 0.01 * (50.0 * x).sin())
+                })
+                .collect()
+        };
+        let cap = |max_iterations, tolerance| SolverSettings {
+            max_iterations,
+            tolerance,
             ..SolverSettings::default()
         };
-        let zeros = |p: &ContactProblem| vec![Impulse::ZERO; p.len()];
-        let mut scheduled = PgsSolver::with_settings(settings);
-        let together = solved_many(&mut scheduled, problems, &stop, zeros);
-        assert_eq!(
-            together,
-            solved_alone(&mut scheduled, problems, &stop, zeros)
+        let mut stops = std::collections::BTreeSet::new();
+        for stop in [
+            cap(1, 0.0),
+            cap(2, 0.0),
+            cap(7, 0.0),
+            cap(12, 1e-3),
+            cap(40, 1e-5),
+        ] {
+            for islands in [&problems[..], &ones[..]] {
+                let mut many = PgsSolver::with_settings(settings);
+                let mut alone = PgsSolver::with_settings(settings);
+                let together = solved_many(&mut many, islands, &stop, start);
+                assert_eq!(
+                    together,
+                    solved_alone(&mut alone, islands, &stop, start),
+                    "{stop:?}"
+                );
+                // `bits` holds the iterations after the impulses and velocities.
+                stops.extend(
+                    islands
+                        .iter()
+                        .zip(&together)
+                        .map(|(p, b)| b[2 * p.len() + 3 * p.bodies.len()]),
+                );
+            }
+        }
+        assert!(
+            stops.iter().filter(|&&it| it > 2 && it < 12).count() >= 3,
+            "stops inside the shares: {stops:?}"
         );
-        // The schedule reached the small islands: plain PGS ends elsewhere on them.
-        let plain = solved_many(&mut PgsSolver::new(), problems, &stop, zeros);
-        let differ = problems
-            .iter()
-            .zip(together.iter().zip(&plain))
-            .filter(|(p, (a, b))| p.len() <= SMALL_POINTS && a != b)
-            .count();
-        assert!(differ > 0, "no small island was over-relaxed");
+        // The schedule reached the packed islands: plain PGS ends elsewhere on them.
+        let stop = cap(7, 0.0);
+        let scheduled = solved_many(&mut PgsSolver::with_settings(settings), &ones, &stop, start);
+        let plain = solved_many(&mut PgsSolver::new(), &ones, &stop, start);
+        let differ = scheduled.iter().zip(&plain).filter(|(a, b)| a != b).count();
+        assert!(
+            differ >= 15,
+            "{differ} of 19 one-point islands over-relaxed"
+        );
     }
 
     #[test]

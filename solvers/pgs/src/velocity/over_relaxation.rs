@@ -14,16 +14,16 @@
 use deepcontact_core::{ContactProblem, SolveReport, SolverSettings};
 
 use super::measures::Verdict;
-use super::{LANES, PgsSolver, Real};
+use super::{Batch, LANES, PgsSolver, Real};
 use crate::PgsError;
 
 /// Over-relaxation factors for equal shares of the first `max_iterations − 1` sweeps of a solve
 /// (`pgs:sor=1.8/1.7/1.3`): in share `j` the single-point manifolds' effective masses are
 /// scaled by factor `j`; the last sweep, and every sweep after a share that met the stop rule,
-/// is plain Gauss-Seidel on the island as given. With a schedule every island is solved on its
-/// own (small islands are not packed into shared batches,
-/// [`VelocitySolver::solve_many`](deepcontact_core::VelocitySolver::solve_many)): on the piles
-/// the small islands' residual counts too. Meant for a fixed budget of passes, where
+/// is plain Gauss-Seidel on the island as given. Small islands packed into shared batches
+/// ([`VelocitySolver::solve_many`](deepcontact_core::VelocitySolver::solve_many)) are scaled
+/// together at the same sweeps, each ending with the bits of its own scheduled solve: on the
+/// piles the small islands' residual counts too. Meant for a fixed budget of passes, where
 /// `max_iterations` is the budget; with a cap of hundreds the shares are hundreds of sweeps long.
 ///
 /// ```
@@ -186,17 +186,19 @@ impl PgsSolver {
         for m in self.scratch.iter().filter(|m| m.count == 1) {
             scale(&mut self.rows, m);
         }
-        for (batch, base) in self.batches.iter_mut().zip(&self.batch_masses) {
-            for lane in 0..LANES {
-                batch.normal_mass[lane] = base[lane] * omega;
-                batch.tangent_mass[lane] = base[LANES + lane] * omega;
-            }
-        }
+        self.scale_batches(omega);
     }
 
-    /// Keeps the batches' lanes' effective masses (the island's own) for
-    /// [`Self::scale_single_points`].
-    fn save_batch_masses(&mut self) {
+    /// Sets every batch lane's effective masses to the copy [`Self::save_batch_masses`] took
+    /// times `omega` (a batch holds single-point manifolds only; padding lanes' masses are
+    /// zero and stay zero).
+    fn scale_batches(&mut self, omega: Real) {
+        scale_lanes(&mut self.batches, &self.batch_masses, omega);
+    }
+
+    /// Keeps the batches' lanes' effective masses (the island's own, or a pack's) for
+    /// [`Self::scale_single_points`] and [`scale_lanes`].
+    pub(crate) fn save_batch_masses(&mut self) {
         self.batch_masses.clear();
         self.batch_masses.extend(self.batches.iter().map(|b| {
             let mut base = [0.0; 2 * LANES];
@@ -204,6 +206,19 @@ impl PgsSolver {
             base[LANES..].copy_from_slice(&b.tangent_mass);
             base
         }));
+    }
+}
+
+/// Sets every lane's effective masses of `batches` to `masses` (per batch, its lanes' normal
+/// masses then their tangent masses, as [`PgsSolver::save_batch_masses`] keeps them) times
+/// `omega`. A batch holds single-point manifolds only; padding lanes' masses are zero and stay
+/// zero; `omega` = 1 gives the saved masses bit for bit.
+pub(crate) fn scale_lanes(batches: &mut [Batch], masses: &[[Real; 2 * LANES]], omega: Real) {
+    for (batch, base) in batches.iter_mut().zip(masses) {
+        for lane in 0..LANES {
+            batch.normal_mass[lane] = base[lane] * omega;
+            batch.tangent_mass[lane] = base[LANES + lane] * omega;
+        }
     }
 }
 
