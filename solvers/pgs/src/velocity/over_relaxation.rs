@@ -186,13 +186,6 @@ impl PgsSolver {
         for m in self.scratch.iter().filter(|m| m.count == 1) {
             scale(&mut self.rows, m);
         }
-        self.scale_batches(omega);
-    }
-
-    /// Sets every batch lane's effective masses to the copy [`Self::save_batch_masses`] took
-    /// times `omega` (a batch holds single-point manifolds only; padding lanes' masses are
-    /// zero and stay zero).
-    fn scale_batches(&mut self, omega: Real) {
         scale_lanes(&mut self.batches, &self.batch_masses, omega);
     }
 
