@@ -234,6 +234,11 @@ mod tests {
             tolerance,
             ..SolverSettings::default()
         };
+        // Least iterations (20) spanning shares of 13: counted from the solve's first sweep.
+        let least = SolverSettings {
+            min_iterations: 20,
+            ..cap(40, 1e3)
+        };
         let mut stops = std::collections::BTreeSet::new();
         for stop in [
             cap(1, 0.0),
@@ -241,6 +246,7 @@ mod tests {
             cap(7, 0.0),
             cap(12, 1e-3),
             cap(40, 1e-5),
+            least,
         ] {
             for islands in [&problems[..], &ones[..]] {
                 let mut many = PgsSolver::with_settings(settings);
@@ -264,6 +270,7 @@ mod tests {
             stops.iter().filter(|&&it| it > 2 && it < 12).count() >= 3,
             "stops inside the shares: {stops:?}"
         );
+        assert!(stops.contains(&20), "the least iterations' stop: {stops:?}");
         // The schedule reached the packed islands: plain PGS ends elsewhere on them.
         let stop = cap(7, 0.0);
         let scheduled = solved_many(&mut PgsSolver::with_settings(settings), &ones, &stop, start);
