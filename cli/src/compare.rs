@@ -62,8 +62,8 @@ pub struct CompareArgs {
     pub same_problems: Option<String>,
     /// Run the scene suite over these registered scene specs (`deepcontact list`), e.g.
     /// `pile,box-pile:bodies=1000,pyramid:base=20`: one summary with a scene and a budget
-    /// column (`--scene` and `--bodies` are then unused). `suite` names the seven scenes of
-    /// the suite.
+    /// column (`--scene` and `--bodies` are then unused). `suite`, alone or beside other specs
+    /// (`suite,pile:bodies=300`), names the seven scenes of the suite.
     #[arg(long)]
     pub scenes: Option<String>,
     /// Fixed budgets of constraint passes per island and step, the provider's own sweeps
@@ -94,8 +94,7 @@ impl CompareArgs {
                 Some(spec) => vec![spec.clone()],
                 None => vec![single_scene_spec(&base.scene, base.bodies)?],
             },
-            Some("suite") => split_spec_list(DEFAULT_SCENES)?,
-            Some(list) => split_spec_list(list)?,
+            Some(list) => scene_specs(list)?,
         };
         let budgets = match (&self.budgets, self.budget) {
             (Some(list), _) => parse_budgets(list)?,
@@ -192,4 +191,49 @@ pub fn run(args: CompareArgs, registry: &Registry) -> Result<(), CliError> {
         args.out.display()
     );
     Ok(())
+}
+
+/// The scene specs of `--scenes`, each `suite` replaced by the suite's seven scenes in place.
+fn scene_specs(list: &str) -> Result<Vec<Spec>, CliError> {
+    let mut specs = Vec::new();
+    for spec in split_spec_list(list)? {
+        if spec.name != "suite" {
+            specs.push(spec);
+        } else if spec.params.is_empty() {
+            specs.extend(split_spec_list(DEFAULT_SCENES)?);
+        } else {
+            return Err(CliError::Usage(format!(
+                "--scenes: `suite` takes no parameters (got `{list}`); name a scene with its \
+                 parameters beside it, e.g. `suite,pile:bodies=300`"
+            )));
+        }
+    }
+    Ok(specs)
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    use crate::{Cli, Command};
+
+    fn scene_names(scenes: &str) -> Vec<String> {
+        let cli = Cli::try_parse_from(["deepcontact", "compare", "--scenes", scenes]).unwrap();
+        let Command::Compare(args) = cli.command else {
+            panic!("not the compare command");
+        };
+        let suite = args.suite_config().unwrap();
+        suite.scenes.iter().map(|s| s.to_string()).collect()
+    }
+
+    #[test]
+    fn the_suite_named_beside_other_scenes_expands_in_place() {
+        let alone = scene_names("suite");
+        assert_eq!(alone.len(), 7, "{alone:?}");
+        let mixed = scene_names("pile:bodies=300,suite,stack:count=5");
+        assert_eq!(mixed.len(), 9, "{mixed:?}");
+        assert_eq!(mixed[0], "pile:bodies=300");
+        assert_eq!(mixed[1..8], alone[..]);
+        assert_eq!(mixed[8], "stack:count=5");
+    }
 }

@@ -334,6 +334,18 @@ fn cases(dir: &Path) -> Vec<Case> {
         ),
         case("unknown preset", &sim(&["--preset", "nope"]), "preset"),
         case(
+            "the suite with parameters",
+            &[
+                "compare",
+                "--scenes",
+                "suite:bodies=300",
+                "--out",
+                &out,
+                "--no-plots",
+            ],
+            "`suite` takes no parameters",
+        ),
+        case(
             "bad shard",
             &["generate", "--shard", "4/4", "--out", &out, "--quiet"],
             "4/4",
