@@ -68,8 +68,10 @@ pub struct CompareArgs {
     pub scenes: Option<String>,
     /// Fixed budgets of constraint passes per island and step, the provider's own sweeps
     /// included, comma-separated, `tolerance` for the stop rule of `--tolerance` and
-    /// `--max-iterations`, e.g. `4,8,16,32,tolerance` (runs the suite; default with
-    /// `--scenes`: that list).
+    /// `--max-iterations`, `tolerance@N` for that rule with a cap of N iterations, e.g.
+    /// `4,8,16,32,tolerance` (runs the suite; default with `--scenes`: that list). With
+    /// builtin at two caps or more the summary adds a table at equal accuracy: the cap and step
+    /// at which builtin stops where each other row stops.
     #[arg(long)]
     pub budgets: Option<String>,
     /// One fixed budget of passes per island and step (`--budgets K`).

@@ -346,6 +346,18 @@ fn cases(dir: &Path) -> Vec<Case> {
             "`suite` takes no parameters",
         ),
         case(
+            "a capped tolerance budget of 0",
+            &[
+                "compare",
+                "--budgets",
+                "tolerance@0",
+                "--out",
+                &out,
+                "--no-plots",
+            ],
+            "tolerance@0",
+        ),
+        case(
             "bad shard",
             &["generate", "--shard", "4/4", "--out", &out, "--quiet"],
             "4/4",

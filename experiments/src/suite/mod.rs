@@ -9,15 +9,19 @@
 //! the rest ([`deepcontact_core::WorldSettings::budget`]). The position pass then runs a fixed
 //! [`SuiteConfig::position_passes`] iterations (Box2D v2.4's 3 by default) with no early stop,
 //! so penetration reflects the budget. [`Budget::Tolerance`] is the comparison's own stop rule
-//! (cap and tolerance of [`Config::world`]).
+//! (cap and tolerance of [`Config::world`]); [`Budget::Capped`] the same rule with another cap,
+//! so that a few caps side by side say how many iterations builtin needs to stop where another
+//! start stops ([`equal_accuracy`]).
 //!
 //! **Cells** run one after another; inside a cell the seeds run side by side and each seed's
 //! providers in lockstep (see [`crate::compare`]), so the times of one cell compare provider
 //! against provider.
 
+mod accuracy;
 mod output;
 mod stats;
 
+pub use accuracy::{EqualAccuracy, Measure, equal_accuracy};
 pub use output::{SUITE_STEPS_COLUMNS, suite_figures, suite_md, suite_steps_csv, write_suite};
 pub use stats::{SuiteRow, suite_rows};
 
@@ -39,6 +43,24 @@ pub enum Budget {
     /// A fixed number of passes per island and step, the provider's included (written as
     /// the number, 2 to [`deepcontact_core::MAX_BUDGET`]).
     Passes(u32),
+    /// The comparison's stop rule with a cap of this many iterations instead of the world's
+    /// (written `tolerance@N`, 1 to [`MAX_CAP`]).
+    Capped(u32),
+}
+
+/// The largest cap of a [`Budget::Capped`] (100 000 iterations).
+pub const MAX_CAP: u32 = 100_000;
+
+impl Budget {
+    /// The velocity solve's iteration cap in a cell run with `world_cap` as the world's cap
+    /// ([`deepcontact_core::SolverSettings::max_iterations`]): `None` under a pass budget.
+    pub fn cap(self, world_cap: u32) -> Option<u32> {
+        match self {
+            Budget::Tolerance => Some(world_cap),
+            Budget::Capped(n) => Some(n),
+            Budget::Passes(_) => None,
+        }
+    }
 }
 
 impl fmt::Display for Budget {
@@ -46,6 +68,7 @@ impl fmt::Display for Budget {
         match self {
             Budget::Tolerance => f.write_str("tolerance"),
             Budget::Passes(k) => write!(f, "{k}"),
+            Budget::Capped(n) => write!(f, "tolerance@{n}"),
         }
     }
 }
@@ -58,10 +81,22 @@ impl FromStr for Budget {
         if s == "tolerance" || s == "tol" {
             return Ok(Budget::Tolerance);
         }
+        if let Some(cap) = s
+            .strip_prefix("tolerance@")
+            .or_else(|| s.strip_prefix("tol@"))
+        {
+            return match cap.trim().parse::<u32>() {
+                Ok(n) if (1..=MAX_CAP).contains(&n) => Ok(Budget::Capped(n)),
+                _ => Err(ExperimentError::Invalid(format!(
+                    "budget `{s}`: the cap after `tolerance@` must be a number of iterations in \
+                     1..={MAX_CAP}"
+                ))),
+            };
+        }
         match s.parse::<u32>() {
             Ok(k) if (2..=deepcontact_core::MAX_BUDGET).contains(&k) => Ok(Budget::Passes(k)),
             _ => Err(ExperimentError::Invalid(format!(
-                "budget `{s}` must be `tolerance` or a number of passes in 2..={}",
+                "budget `{s}` must be `tolerance`, `tolerance@CAP` or a number of passes in 2..={}",
                 deepcontact_core::MAX_BUDGET
             ))),
         }
@@ -74,7 +109,7 @@ impl serde::Serialize for Budget {
     }
 }
 
-/// Parses a comma-separated budget list such as `4,8,16,32,tolerance`.
+/// Parses a comma-separated budget list such as `4,8,16,32,tolerance,tolerance@2000`.
 pub fn parse_budgets(list: &str) -> Result<Vec<Budget>, ExperimentError> {
     let budgets = list
         .split(',')
@@ -129,12 +164,16 @@ impl SuiteConfig {
         let mut config = self.base.clone();
         config.scene = scene.name.clone();
         config.scene_spec = Some(scene.clone());
-        if let Budget::Passes(k) = budget {
-            config.world.budget = Some(k);
-            config.world.solver.max_iterations = k;
-            config.world.solver.tolerance = 0.0;
-            config.world.position.max_iterations = self.position_passes;
-            config.world.position.tolerance = 0.0;
+        match budget {
+            Budget::Passes(k) => {
+                config.world.budget = Some(k);
+                config.world.solver.max_iterations = k;
+                config.world.solver.tolerance = 0.0;
+                config.world.position.max_iterations = self.position_passes;
+                config.world.position.tolerance = 0.0;
+            }
+            Budget::Capped(n) => config.world.solver.max_iterations = n,
+            Budget::Tolerance => {}
         }
         config
     }
@@ -294,12 +333,67 @@ mod tests {
     }
 
     #[test]
+    fn a_capped_tolerance_budget_caps_the_solve_and_gives_the_equal_accuracy_table() {
+        let mut config = small();
+        config.base.warm_starts = Config::with_warm_starts("builtin,sor").unwrap().warm_starts;
+        config.scenes = split_spec_list("pile:bodies=40").unwrap();
+        config.budgets = parse_budgets("tolerance,tolerance@3").unwrap();
+        let results = run_suite(&config, &crate::full_registry(), &|| false, &mut |_| {}).unwrap();
+        let rows = suite_rows(&results);
+        let capped: Vec<&SuiteRow> = rows
+            .iter()
+            .filter(|r| r.budget == Budget::Capped(3))
+            .collect();
+        assert_eq!(capped.len(), 2);
+        for r in &capped {
+            assert!(
+                r.solver_passes <= 3.0,
+                "{}: {}",
+                r.warm_start,
+                r.solver_passes
+            );
+        }
+        assert!(
+            capped[0].warm_start == "builtin" && capped[0].capped_steps > 0,
+            "builtin never reached the cap of 3"
+        );
+        let tolerance = rows
+            .iter()
+            .find(|r| r.budget == Budget::Tolerance && r.warm_start == "builtin")
+            .unwrap();
+        assert!(tolerance.solver_passes > 3.0, "{}", tolerance.solver_passes);
+        let found = equal_accuracy(&rows, config.base.world.solver.max_iterations);
+        assert_eq!(found.len(), 2 * 2, "{found:?}");
+        assert!(found.iter().all(|e| e.builtin_caps == (3, 1000)));
+        let md = suite_md(&results, &rows);
+        assert!(md.contains("## At equal accuracy"), "{md}");
+        assert!(
+            md.contains("| `pile:bodies=40` | pgs | sor | 3 | p99 |"),
+            "{md}"
+        );
+    }
+
+    #[test]
     fn budgets_parse_and_bad_ones_are_refused() {
         assert_eq!(
             parse_budgets("4, 32,tol").unwrap(),
             [Budget::Passes(4), Budget::Passes(32), Budget::Tolerance]
         );
-        for bad in ["1", "x", "", "100001"] {
+        assert_eq!(
+            parse_budgets("tolerance@2000, tol@1").unwrap(),
+            [Budget::Capped(2000), Budget::Capped(1)]
+        );
+        assert_eq!(Budget::Capped(2000).to_string(), "tolerance@2000");
+        for bad in [
+            "1",
+            "x",
+            "",
+            "100001",
+            "tolerance@0",
+            "tolerance@",
+            "tol@x",
+            "tolerance@100001",
+        ] {
             assert!(parse_budgets(bad).is_err(), "{bad}");
         }
         let mut twice = small();

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use super::{Budget, SuiteResults, SuiteRow, suite_rows};
+use super::{Budget, EqualAccuracy, SuiteResults, SuiteRow, equal_accuracy, suite_rows};
 use crate::atomic::{file_safe, json_bytes, write_files};
 use crate::plots::{self, Figure, Panel, Scale, Series};
 use crate::{ExperimentError, csv_bytes};
@@ -90,7 +90,7 @@ pub fn suite_md(results: &SuiteResults, rows: &[SuiteRow]) -> String {
          island gets K passes per step: the provider's own (`provider_passes`) and the solver's \
          (`solver_passes`), and the position pass runs {} iterations in full. `tolerance`: the \
          solver iterates until max |Δλ| < {:e} or {} iterations, the position pass until its own \
-         stop rule (cap {}).\n",
+         stop rule (cap {}); `tolerance@N`: the same with a cap of N iterations.\n",
         c.scenes.len(),
         if c.scenes.len() == 1 { "" } else { "s" },
         c.budgets.len(),
@@ -140,7 +140,51 @@ pub fn suite_md(results: &SuiteResults, rows: &[SuiteRow]) -> String {
          energy after the last step, mean over seeds. vs builtin: total step time (the provider's \
          included) over the first solver's `builtin` in the same scene and budget."
     );
+    accuracy_md(
+        &mut s,
+        &equal_accuracy(rows, results.config.base.world.solver.max_iterations),
+    );
     s
+}
+
+/// The equal-accuracy table ([`equal_accuracy`]), when builtin ran at two caps or more.
+fn accuracy_md(s: &mut String, found: &[EqualAccuracy]) {
+    if found.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        s,
+        "\n## At equal accuracy\n\nFor each tolerance-mode row, the cap at which the first solver's \
+         `builtin` stops at the same natural residual (mean or p99): ln residual linear in the cap \
+         between the first two of builtin's caps that bracket it, the step time linear between \
+         them (each cap is another trajectory: the crossing is rough). step ×: the row's step over \
+         builtin's there.\n\n| scene | solver | warm_start | cap | measure | residual | builtin's \
+         cap there | builtin's step_ms there | step × |\n|---|---|---|---:|---|---:|---:|---:|---:|"
+    );
+    for e in found {
+        let (cap, step, ratio) = match (e.builtin_cap, e.builtin_step_ms, e.step_vs_builtin) {
+            (Some(c), Some(m), r) => (
+                format!("{c:.0}"),
+                format!("{m:.3}"),
+                r.map_or_else(String::new, |x| format!("{x:.2}")),
+            ),
+            _ => (
+                format!("not within {}–{}", e.builtin_caps.0, e.builtin_caps.1),
+                String::new(),
+                String::new(),
+            ),
+        };
+        let _ = writeln!(
+            s,
+            "| `{}` | {} | {} | {} | {} | {:.2e} | {cap} | {step} | {ratio} |",
+            e.scene,
+            e.solver,
+            e.warm_start,
+            e.cap,
+            e.measure.name(),
+            e.residual,
+        );
+    }
 }
 
 /// Per scene, residual p99 and deepest penetration against the pass budget, one line per
@@ -175,7 +219,7 @@ pub fn suite_figures(rows: &[SuiteRow]) -> Vec<(String, Figure)> {
                             .filter(|r| &r.solver == solver && &r.warm_start == warm_start)
                             .filter_map(|r| match r.budget {
                                 Budget::Passes(k) => Some((f64::from(k), f(r))),
-                                Budget::Tolerance => None,
+                                Budget::Tolerance | Budget::Capped(_) => None,
                             })
                             .collect(),
                     })
@@ -212,8 +256,9 @@ pub fn write_suite(
 ) -> Result<(Vec<PathBuf>, String), ExperimentError> {
     let rows = suite_rows(results);
     let md = suite_md(results, &rows);
+    let accuracy = equal_accuracy(&rows, results.config.base.world.solver.max_iterations);
     let json = serde_json::json!({ "config": &results.config, "wall_seconds": results.wall_seconds,
-        "summary": &rows });
+        "summary": &rows, "equal_accuracy": &accuracy });
     let mut files = write_files(
         dir,
         [

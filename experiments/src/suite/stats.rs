@@ -10,7 +10,7 @@ use crate::compare::{Results, StepRecord};
 pub struct SuiteRow {
     /// Scene label (its spec).
     pub scene: String,
-    /// Budget: passes per island and step, or `tolerance`.
+    /// Budget: passes per island and step, `tolerance`, or `tolerance@N`.
     pub budget: Budget,
     /// Solver label.
     pub solver: String,
@@ -48,7 +48,7 @@ pub struct SuiteRow {
     /// Mean over seeds of the kinetic energy after the last step (J): what is left moving
     /// of a scene that should be at rest.
     pub final_kinetic_energy: f64,
-    /// Contact steps in which an island hit the iteration cap (tolerance mode).
+    /// Contact steps in which an island hit the iteration cap (tolerance mode, any cap).
     pub capped_steps: usize,
     /// Islands whose warm start was rejected, summed.
     pub fallbacks: usize,
@@ -97,7 +97,7 @@ fn cell_rows(cell: &Cell) -> Vec<SuiteRow> {
             let per_island = |x: f64| if islands > 0.0 { x / islands } else { 0.0 };
             let mut residuals: Vec<f64> = contact.iter().map(|r| r.natural_residual).collect();
             let converged_max = match (cell.budget, builtin) {
-                (Budget::Tolerance, Some(reference)) => Some(
+                (Budget::Tolerance | Budget::Capped(_), Some(reference)) => Some(
                     runs.iter()
                         .zip(reference)
                         .flat_map(|(run, base)| run.steps.iter().zip(&base.steps))
