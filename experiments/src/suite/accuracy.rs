@@ -188,14 +188,22 @@ mod tests {
         }
     }
 
-    #[test]
-    fn builtin_is_matched_where_its_residual_crosses_the_rows_between_two_caps() {
-        let rows = [
+    /// Builtin and `sor` at the world's cap of 1 000, then `more` rows.
+    fn rows(more: &[SuiteRow]) -> Vec<SuiteRow> {
+        let mut rows = vec![
             row(Budget::Tolerance, "builtin", 4e-3, 1e-2, 6.0),
             row(Budget::Tolerance, "sor", 1e-3, 1e-4, 7.0),
+        ];
+        rows.extend_from_slice(more);
+        rows
+    }
+
+    #[test]
+    fn builtin_is_matched_where_its_residual_crosses_the_rows_between_two_caps() {
+        let rows = rows(&[
             row(Budget::Capped(2000), "builtin", 2e-3, 5e-3, 8.0),
             row(Budget::Capped(4000), "builtin", 5e-4, 2e-3, 12.0),
-        ];
+        ]);
         let found = equal_accuracy(&rows, 1000);
         let cap = |w: &str, c: u32, m: Measure| {
             found
@@ -222,11 +230,7 @@ mod tests {
 
     #[test]
     fn one_cap_of_builtin_gives_no_match() {
-        let rows = [
-            row(Budget::Tolerance, "builtin", 4e-3, 1e-2, 6.0),
-            row(Budget::Tolerance, "sor", 1e-3, 1e-4, 7.0),
-            row(Budget::Passes(8), "builtin", 4e-2, 1e-1, 1.0),
-        ];
+        let rows = rows(&[row(Budget::Passes(8), "builtin", 4e-2, 1e-1, 1.0)]);
         assert!(equal_accuracy(&rows, 1000).is_empty());
     }
 }
