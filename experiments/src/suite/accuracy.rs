@@ -120,13 +120,10 @@ pub fn equal_accuracy(rows: &[SuiteRow], world_cap: u32) -> Vec<EqualAccuracy> {
     }
     for scene in scenes {
         let curve = builtin_curve(rows, scene, world_cap);
-        let (Some(&(lowest, reference)), Some(&(highest, _))) = (curve.first(), curve.last())
-        else {
-            continue;
-        };
         if curve.len() < 2 {
             continue;
         }
+        let ((lowest, reference), (highest, _)) = (curve[0], curve[curve.len() - 1]);
         for row in rows.iter().filter(|r| r.scene == scene) {
             let Some(cap) = row.budget.cap(world_cap) else {
                 continue;

@@ -196,9 +196,12 @@ impl SuiteConfig {
                 return invalid(format!("scene `{l}` is listed twice"));
             }
         }
+        // `tolerance` and `tolerance@N` with N the world's cap run the same cells.
+        let world_cap = self.base.world.solver.max_iterations;
+        let key = |b: &Budget| b.cap(world_cap).ok_or(*b);
         for (i, b) in self.budgets.iter().enumerate() {
-            if self.budgets[..i].contains(b) {
-                return invalid(format!("budget `{b}` is listed twice"));
+            if let Some(same) = self.budgets[..i].iter().find(|a| key(a) == key(b)) {
+                return invalid(format!("budget `{b}` runs the same cells as `{same}`"));
             }
         }
         for scene in &self.scenes {
@@ -396,9 +399,11 @@ mod tests {
         ] {
             assert!(parse_budgets(bad).is_err(), "{bad}");
         }
-        let mut twice = small();
-        twice.budgets = parse_budgets("8,8").unwrap();
-        assert!(twice.validate(&crate::full_registry()).is_err());
+        for same in ["8,8", "tolerance,tolerance@1000"] {
+            let mut twice = small();
+            twice.budgets = parse_budgets(same).unwrap();
+            assert!(twice.validate(&crate::full_registry()).is_err(), "{same}");
+        }
         let mut unknown = small();
         unknown.scenes = split_spec_list("pile,nosuch").unwrap();
         assert!(unknown.validate(&crate::full_registry()).is_err());

@@ -73,8 +73,18 @@ pub fn suite_steps_csv(results: &SuiteResults) -> Result<Vec<u8>, ExperimentErro
     }))
 }
 
-/// `summary.md`: one table per scene, rows by budget, solver and warm start.
+/// `summary.md`: one table per scene, rows by budget, solver and warm start, then the table
+/// at equal accuracy ([`equal_accuracy`]) when builtin ran at two caps or more.
 pub fn suite_md(results: &SuiteResults, rows: &[SuiteRow]) -> String {
+    md_with(results, rows, &accuracy_of(results, rows))
+}
+
+/// The equal-accuracy rows of a suite's summary rows.
+fn accuracy_of(results: &SuiteResults, rows: &[SuiteRow]) -> Vec<EqualAccuracy> {
+    equal_accuracy(rows, results.config.base.world.solver.max_iterations)
+}
+
+fn md_with(results: &SuiteResults, rows: &[SuiteRow], accuracy: &[EqualAccuracy]) -> String {
     let c = &results.config;
     let b = &c.base;
     let mut s = String::new();
@@ -140,10 +150,7 @@ pub fn suite_md(results: &SuiteResults, rows: &[SuiteRow]) -> String {
          energy after the last step, mean over seeds. vs builtin: total step time (the provider's \
          included) over the first solver's `builtin` in the same scene and budget."
     );
-    accuracy_md(
-        &mut s,
-        &equal_accuracy(rows, results.config.base.world.solver.max_iterations),
-    );
+    accuracy_md(&mut s, accuracy);
     s
 }
 
@@ -255,8 +262,8 @@ pub fn write_suite(
     plots: bool,
 ) -> Result<(Vec<PathBuf>, String), ExperimentError> {
     let rows = suite_rows(results);
-    let md = suite_md(results, &rows);
-    let accuracy = equal_accuracy(&rows, results.config.base.world.solver.max_iterations);
+    let accuracy = accuracy_of(results, &rows);
+    let md = md_with(results, &rows, &accuracy);
     let json = serde_json::json!({ "config": &results.config, "wall_seconds": results.wall_seconds,
         "summary": &rows, "equal_accuracy": &accuracy });
     let mut files = write_files(
