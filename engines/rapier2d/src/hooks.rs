@@ -441,84 +441,8 @@ impl WarmStartHooks {
                 iterations: frame.passes,
                 ..SolveReport::default()
             };
-            for p in &pending {
-                let manifold = narrow_phase
-                    .contact_pair(p.collider1, p.collider2)
-                    .and_then(|pair| {
-                        pair.manifolds
-                            .iter()
-                            .find(|m| m.subshape1 == p.subshape1 && m.subshape2 == p.subshape2)
-                    });
-                let Some(manifold) = manifold else {
-                    missing.get_or_insert(AdapterError::MissingManifold {
-                        collider1: p.collider1.into_raw_parts().0,
-                        collider2: p.collider2.into_raw_parts().0,
-                        subshape1: p.subshape1,
-                        subshape2: p.subshape2,
-                    });
-                    continue;
-                };
-                let mut solved = Vec::with_capacity(p.contacts.len());
-                for (&c, &w) in p.contacts.iter().zip(&p.written) {
-                    let data = manifold.points.get(c as usize).map(|pt| pt.data);
-                    solved.push(data.map_or(Impulse::ZERO, |d| {
-                        solved_per_step((d.impulse, d.tangent_impulse.x), w)
-                    }));
-                }
-                let used: Vec<Impulse> = p
-                    .written
-                    .iter()
-                    .map(|&(n, t)| {
-                        let s = to_step(n, t, frame.substeps);
-                        Impulse::new(s.normal * frame.coefficient, s.tangent * frame.coefficient)
-                    })
-                    .collect();
-                let ctx = context(&frame, state, &p.problem, &p.carried, p.island);
-                let seen = Observation::new(&used, &solved, p.fell_back, &report);
-                state.provider.observe(&ctx, &seen);
-            }
-            let islands = std::mem::take(&mut state.islands);
-            let count = islands.len();
-            for (i, (island, fell_back)) in islands.iter().enumerate() {
-                let mut used = Vec::with_capacity(island.keys.len());
-                let mut solved = Vec::with_capacity(island.keys.len());
-                for key in &island.keys {
-                    let Some(&w) = state.written.get(key) else {
-                        // Not a solver contact this step after all: no start, no impulse.
-                        used.push(Impulse::ZERO);
-                        solved.push(Impulse::ZERO);
-                        continue;
-                    };
-                    let s = to_step(w.0, w.1, frame.substeps);
-                    used.push(Impulse::new(
-                        s.normal * frame.coefficient,
-                        s.tangent * frame.coefficient,
-                    ));
-                    let data = narrow_phase
-                        .contact_pair(
-                            ColliderHandle::from_raw_parts(key.collider1.0, key.collider1.1),
-                            ColliderHandle::from_raw_parts(key.collider2.0, key.collider2.1),
-                        )
-                        .and_then(|pair| {
-                            pair.manifolds.iter().find(|m| {
-                                m.subshape1 == key.subshape1 && m.subshape2 == key.subshape2
-                            })
-                        })
-                        .and_then(|m| {
-                            m.points
-                                .iter()
-                                .find(|p| p.fid1.0 == key.fid1 && p.fid2.0 == key.fid2)
-                        })
-                        .map(|p| p.data);
-                    solved.push(data.map_or(Impulse::ZERO, |d| {
-                        solved_per_step((d.impulse, d.tangent_impulse.x), w)
-                    }));
-                }
-                let mut ctx = context(&frame, state, &island.problem, &island.carried, i);
-                ctx.island_count = count;
-                let seen = Observation::new(&used, &solved, *fell_back, &report);
-                state.provider.observe(&ctx, &seen);
-            }
+            missing = observe_manifolds(state, &frame, &pending, narrow_phase, &report);
+            observe_islands(state, &frame, narrow_phase, &report);
             state.stats.provider_seconds += start.elapsed().as_secs_f64();
         }
         state.spare.append(&mut pending);
@@ -549,126 +473,17 @@ impl WarmStartHooks {
     ) {
         let start = Instant::now();
         let (c1, c2) = (c.collider1, c.collider2);
-        let (s1, s2) = (c.manifold.subshape1, c.manifold.subshape2);
         let island = state.pending.len();
         let mut slot = state.spare.pop().unwrap_or_else(Pending::empty);
-        let Pending {
-            problem,
-            contacts,
-            carried,
-            written,
-            ..
-        } = &mut slot;
-        problem.clear();
-        contacts.clear();
-        carried.clear();
-        written.clear();
-        let a = problem.add_body(body(c.bodies, c.colliders, c.rigid_body1, c1, &frame));
-        let b = problem.add_body(body(c.bodies, c.colliders, c.rigid_body2, c2, &frame));
-        let normal = Vector::new(Real::from(c.normal.x), Real::from(c.normal.y));
-        let mut built = Ok(());
-        for (i, sc) in c.solver_contacts.iter().enumerate() {
-            let index = sc.contact_id[0];
-            let Some(tracked) = c.manifold.points.get(index as usize) else {
-                continue;
-            };
-            let key = PointKey {
-                collider1: c1.into_raw_parts(),
-                collider2: c2.into_raw_parts(),
-                subshape1: s1,
-                subshape2: s2,
-                fid1: tracked.fid1.0,
-                fid2: tracked.fid2.0,
-            };
-            // deepcontact manifolds hold at most 2 points (rapier's 2D ones too).
-            if i % 2 == 0 {
-                problem.begin_manifold();
-            }
-            let desc = PointDesc::new(
-                a,
-                b,
-                Vector::new(Real::from(sc.point.x), Real::from(sc.point.y)),
-                normal,
-            )
-            .id(key.contact_id())
-            .separation(Real::from(sc.dist))
-            .friction(Real::from(sc.friction))
-            .restitution(Real::from(sc.restitution), 1.0);
-            if let Err(e) = problem.add_point(&desc) {
-                built = Err(e);
-                break;
-            }
-            contacts.push(index);
-            // rapier's own carried value: a point that carried nothing is new to deepcontact.
-            let (wn, wt) = (sc.warmstart_impulse, sc.warmstart_tangent_impulse.x);
-            let new = sc.is_new != 0.0 && wn == 0.0 && wt == 0.0;
-            carried.push((!new).then(|| to_step(wn, wt, frame.substeps)));
-        }
-        let n = problem.len();
+        let built = fill_problem(&mut slot, c, &frame);
         let mut out = std::mem::take(&mut state.out);
-        let outcome = match built {
-            Err(e) => Err(AdapterError::Problem {
-                collider1: c1.into_raw_parts().0,
-                collider2: c2.into_raw_parts().0,
-                source: e,
-            }),
-            Ok(()) if n != c.solver_contacts.len() => Err(AdapterError::Problem {
-                collider1: c1.into_raw_parts().0,
-                collider2: c2.into_raw_parts().0,
-                source: deepcontact_core::CoreError::InvalidProblem(format!(
-                    "{} solver contacts, {n} manifold points found",
-                    c.solver_contacts.len()
-                )),
-            }),
-            Ok(()) => {
-                let mut ctx = context(&frame, state, problem, carried, island);
-                ctx.island_count = island + 1;
-                out.clear();
-                out.resize(n, Impulse::ZERO);
-                let result = state
-                    .provider
-                    .warm_start(&ctx, &mut out)
-                    .and_then(|()| check_output(&out, n));
-                state.stats.provider_passes += u64::from(state.provider.passes_spent());
-                result.map_err(|source| AdapterError::Provider {
-                    provider: state.provider.name().to_string(),
-                    step: state.step,
-                    collider1: c1.into_raw_parts().0,
-                    collider2: c2.into_raw_parts().0,
-                    source,
-                })
-            }
-        };
-        let fell_back = match outcome {
-            Ok(()) => {
-                written.extend(out.iter().map(|&s| to_substep(s, frame.substeps)));
-                false
-            }
-            Err(e) => {
-                let policy = state.settings.on_failure;
-                if policy == OnFailure::Error && state.error.is_none() {
-                    state.error = Some(e);
-                }
-                // rapier's own carried values, or zeros.
-                written.extend(c.solver_contacts.iter().map(|sc| {
-                    if policy == OnFailure::Zero {
-                        (0.0, 0.0)
-                    } else {
-                        (sc.warmstart_impulse, sc.warmstart_tangent_impulse.x)
-                    }
-                }));
-                true
-            }
-        };
+        let outcome = provide(state, &frame, &slot, built, c, island, &mut out);
+        let fell_back = write_starts(state, c, &out, outcome, &mut slot.written, frame.substeps);
         state.out = out;
-        for (sc, &(wn, wt)) in c.solver_contacts.iter_mut().zip(written.iter()) {
-            sc.warmstart_impulse = wn;
-            sc.warmstart_tangent_impulse.x = wt;
-        }
         state.stats.manifolds += 1;
-        state.stats.points += written.len();
+        state.stats.points += slot.written.len();
         state.stats.fallbacks += usize::from(fell_back);
-        if fell_back && contacts.len() != written.len() {
+        if fell_back && slot.contacts.len() != slot.written.len() {
             // The problem could not be built: nothing to observe for this manifold.
             state.spare.push(slot);
             state.stats.provider_seconds += start.elapsed().as_secs_f64();
@@ -676,13 +491,268 @@ impl WarmStartHooks {
         }
         slot.collider1 = c1;
         slot.collider2 = c2;
-        slot.subshape1 = s1;
-        slot.subshape2 = s2;
+        slot.subshape1 = c.manifold.subshape1;
+        slot.subshape2 = c.manifold.subshape2;
         slot.island = island;
         slot.fell_back = fell_back;
         state.pending.push(slot);
         state.stats.provider_seconds += start.elapsed().as_secs_f64();
     }
+}
+
+/// One manifold's problem into `slot` (its buffers cleared first): its two bodies, a point
+/// for each of rapier's solver contacts (keyed by [`PointKey`]; deepcontact manifolds hold at
+/// most two points, as rapier's 2D ones do), and rapier's carried value of each point, `None`
+/// for a point new to it.
+fn fill_problem(
+    slot: &mut Pending,
+    c: &ContactModificationContext<'_>,
+    frame: &Frame,
+) -> Result<(), deepcontact_core::CoreError> {
+    let Pending {
+        problem,
+        contacts,
+        carried,
+        written,
+        ..
+    } = slot;
+    problem.clear();
+    contacts.clear();
+    carried.clear();
+    written.clear();
+    let (c1, c2) = (c.collider1, c.collider2);
+    let a = problem.add_body(body(c.bodies, c.colliders, c.rigid_body1, c1, frame));
+    let b = problem.add_body(body(c.bodies, c.colliders, c.rigid_body2, c2, frame));
+    let normal = Vector::new(Real::from(c.normal.x), Real::from(c.normal.y));
+    for (i, sc) in c.solver_contacts.iter().enumerate() {
+        let index = sc.contact_id[0];
+        let Some(tracked) = c.manifold.points.get(index as usize) else {
+            continue;
+        };
+        let key = PointKey {
+            collider1: c1.into_raw_parts(),
+            collider2: c2.into_raw_parts(),
+            subshape1: c.manifold.subshape1,
+            subshape2: c.manifold.subshape2,
+            fid1: tracked.fid1.0,
+            fid2: tracked.fid2.0,
+        };
+        if i % 2 == 0 {
+            problem.begin_manifold();
+        }
+        let desc = PointDesc::new(
+            a,
+            b,
+            Vector::new(Real::from(sc.point.x), Real::from(sc.point.y)),
+            normal,
+        )
+        .id(key.contact_id())
+        .separation(Real::from(sc.dist))
+        .friction(Real::from(sc.friction))
+        .restitution(Real::from(sc.restitution), 1.0);
+        problem.add_point(&desc)?;
+        contacts.push(index);
+        // rapier's own carried value: a point that carried nothing is new to deepcontact.
+        let (wn, wt) = (sc.warmstart_impulse, sc.warmstart_tangent_impulse.x);
+        let new = sc.is_new != 0.0 && wn == 0.0 && wt == 0.0;
+        carried.push((!new).then(|| to_step(wn, wt, frame.substeps)));
+    }
+    Ok(())
+}
+
+/// The provider's start of the manifold in `slot` into `out` (checked: finite, one per
+/// point), or why there is none: the problem could not be built (`built`), it lacks some of
+/// rapier's solver contacts, or the provider failed.
+fn provide(
+    state: &mut State,
+    frame: &Frame,
+    slot: &Pending,
+    built: Result<(), deepcontact_core::CoreError>,
+    c: &ContactModificationContext<'_>,
+    island: usize,
+    out: &mut Vec<Impulse>,
+) -> Result<(), AdapterError> {
+    let (c1, c2) = (
+        c.collider1.into_raw_parts().0,
+        c.collider2.into_raw_parts().0,
+    );
+    let n = slot.problem.len();
+    let problem = |source| AdapterError::Problem {
+        collider1: c1,
+        collider2: c2,
+        source,
+    };
+    built.map_err(problem)?;
+    if n != c.solver_contacts.len() {
+        return Err(problem(deepcontact_core::CoreError::InvalidProblem(
+            format!(
+                "{} solver contacts, {n} manifold points found",
+                c.solver_contacts.len()
+            ),
+        )));
+    }
+    let mut ctx = context(frame, state, &slot.problem, &slot.carried, island);
+    ctx.island_count = island + 1;
+    out.clear();
+    out.resize(n, Impulse::ZERO);
+    let result = state
+        .provider
+        .warm_start(&ctx, out)
+        .and_then(|()| check_output(out, n));
+    state.stats.provider_passes += u64::from(state.provider.passes_spent());
+    result.map_err(|source| AdapterError::Provider {
+        provider: state.provider.name().to_string(),
+        step: state.step,
+        collider1: c1,
+        collider2: c2,
+        source,
+    })
+}
+
+/// The starts rapier's solver contacts of `c` get, in rapier's substep units, into `written`
+/// and into the contacts: the provider's `out`, or after a failure (`outcome`, recorded under
+/// [`OnFailure::Error`]) rapier's own carried values or zeros. Returns whether it fell back.
+fn write_starts(
+    state: &mut State,
+    c: &mut ContactModificationContext<'_>,
+    out: &[Impulse],
+    outcome: Result<(), AdapterError>,
+    written: &mut Vec<(f32, f32)>,
+    substeps: u32,
+) -> bool {
+    let fell_back = match outcome {
+        Ok(()) => {
+            written.extend(out.iter().map(|&s| to_substep(s, substeps)));
+            false
+        }
+        Err(e) => {
+            let policy = state.settings.on_failure;
+            if policy == OnFailure::Error && state.error.is_none() {
+                state.error = Some(e);
+            }
+            // rapier's own carried values, or zeros.
+            written.extend(c.solver_contacts.iter().map(|sc| {
+                if policy == OnFailure::Zero {
+                    (0.0, 0.0)
+                } else {
+                    (sc.warmstart_impulse, sc.warmstart_tangent_impulse.x)
+                }
+            }));
+            true
+        }
+    };
+    for (sc, &(wn, wt)) in c.solver_contacts.iter_mut().zip(written.iter()) {
+        sc.warmstart_impulse = wn;
+        sc.warmstart_tangent_impulse.x = wt;
+    }
+    fell_back
+}
+
+/// The step's manifolds shown to the provider (`pending`, in pair and sub-shape order): the
+/// starts written and rapier's solved impulses, per deepcontact step. Returns the first
+/// manifold that is no longer in `narrow_phase`.
+fn observe_manifolds(
+    state: &mut State,
+    frame: &Frame,
+    pending: &[Pending],
+    narrow_phase: &NarrowPhase,
+    report: &SolveReport,
+) -> Option<AdapterError> {
+    let mut missing = None;
+    for p in pending {
+        let manifold = narrow_phase
+            .contact_pair(p.collider1, p.collider2)
+            .and_then(|pair| {
+                pair.manifolds
+                    .iter()
+                    .find(|m| m.subshape1 == p.subshape1 && m.subshape2 == p.subshape2)
+            });
+        let Some(manifold) = manifold else {
+            missing.get_or_insert(AdapterError::MissingManifold {
+                collider1: p.collider1.into_raw_parts().0,
+                collider2: p.collider2.into_raw_parts().0,
+                subshape1: p.subshape1,
+                subshape2: p.subshape2,
+            });
+            continue;
+        };
+        let solved: Vec<Impulse> = p
+            .contacts
+            .iter()
+            .zip(&p.written)
+            .map(|(&c, &w)| {
+                let data = manifold.points.get(c as usize).map(|pt| pt.data);
+                data.map_or(Impulse::ZERO, |d| {
+                    solved_per_step((d.impulse, d.tangent_impulse.x), w)
+                })
+            })
+            .collect();
+        let used: Vec<Impulse> = p.written.iter().map(|&w| used_start(w, frame)).collect();
+        let ctx = context(frame, state, &p.problem, &p.carried, p.island);
+        let seen = Observation::new(&used, &solved, p.fell_back, report);
+        state.provider.observe(&ctx, &seen);
+    }
+    missing
+}
+
+/// The step's planned islands shown to the provider: each point's start as written and
+/// rapier's solved impulse, found by its [`PointKey`] (zeros for a point that was no solver
+/// contact this step after all).
+fn observe_islands(
+    state: &mut State,
+    frame: &Frame,
+    narrow_phase: &NarrowPhase,
+    report: &SolveReport,
+) {
+    let islands = std::mem::take(&mut state.islands);
+    let count = islands.len();
+    for (i, (island, fell_back)) in islands.iter().enumerate() {
+        let mut used = Vec::with_capacity(island.keys.len());
+        let mut solved = Vec::with_capacity(island.keys.len());
+        for key in &island.keys {
+            let Some(&w) = state.written.get(key) else {
+                used.push(Impulse::ZERO);
+                solved.push(Impulse::ZERO);
+                continue;
+            };
+            used.push(used_start(w, frame));
+            solved.push(solved_point(narrow_phase, key).map_or(Impulse::ZERO, |d| {
+                solved_per_step((d.impulse, d.tangent_impulse.x), w)
+            }));
+        }
+        let mut ctx = context(frame, state, &island.problem, &island.carried, i);
+        ctx.island_count = count;
+        let seen = Observation::new(&used, &solved, *fell_back, report);
+        state.provider.observe(&ctx, &seen);
+    }
+}
+
+/// The start rapier applied from a written substep value `w`, per deepcontact step: scaled by
+/// its warm-start coefficient.
+fn used_start(w: (f32, f32), frame: &Frame) -> Impulse {
+    let s = to_step(w.0, w.1, frame.substeps);
+    Impulse::new(s.normal * frame.coefficient, s.tangent * frame.coefficient)
+}
+
+/// Rapier's solver data of the point `key` names, if its pair, manifold and point are still
+/// in `narrow_phase`.
+fn solved_point(narrow_phase: &NarrowPhase, key: &PointKey) -> Option<ContactData> {
+    narrow_phase
+        .contact_pair(
+            ColliderHandle::from_raw_parts(key.collider1.0, key.collider1.1),
+            ColliderHandle::from_raw_parts(key.collider2.0, key.collider2.1),
+        )
+        .and_then(|pair| {
+            pair.manifolds
+                .iter()
+                .find(|m| m.subshape1 == key.subshape1 && m.subshape2 == key.subshape2)
+        })
+        .and_then(|m| {
+            m.points
+                .iter()
+                .find(|p| p.fid1.0 == key.fid1 && p.fid2.0 == key.fid2)
+        })
+        .map(|p| p.data)
 }
 
 /// The provider's context for one manifold's problem.

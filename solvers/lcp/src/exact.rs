@@ -158,37 +158,14 @@ pub fn solve_exact(problem: &ContactProblem, tolerance: Real) -> Result<ExactSol
             *s = STATES[c % 4];
             c /= 4;
         }
-        // Unknowns: λn of every touching point, λt of every sticking point.
-        // Equations: wn = 0 for touching points, wt = 0 for sticking points.
-        unknowns.clear();
-        equations.clear();
-        for (p, s) in states.iter().enumerate() {
-            if *s != ContactState::Separated {
-                unknowns.push(2 * p);
-                equations.push(2 * p);
-            }
-            if *s == ContactState::Sticking {
-                unknowns.push(2 * p + 1);
-                equations.push(2 * p + 1);
-            }
-        }
-        let k = unknowns.len();
-        // Column of unknown λn of a sliding point includes its tangent: λt = sμλn.
-        for (ei, &row) in equations.iter().enumerate() {
-            for (ui, &col) in unknowns.iter().enumerate() {
-                let p = col / 2;
-                let mut v = w[(row, col)];
-                if col % 2 == 0 {
-                    match states[p] {
-                        ContactState::SlidingNegative => v += mu[p] * w[(row, col + 1)],
-                        ContactState::SlidingPositive => v -= mu[p] * w[(row, col + 1)],
-                        _ => {}
-                    }
-                }
-                a[ei * k + ui] = v;
-            }
-            b[ei] = -q[row];
-        }
+        let k = active_set_system(
+            &states,
+            &w,
+            mu,
+            q,
+            (&mut unknowns, &mut equations),
+            (&mut a, &mut b),
+        );
         let consistency_tol = 1e-9 * (1.0 + qmax);
         if !gauss_full_pivot(
             &mut a[..k * k],
@@ -200,17 +177,7 @@ pub fn solve_exact(problem: &ContactProblem, tolerance: Real) -> Result<ExactSol
         ) {
             continue;
         }
-        lambda.fill(0.0);
-        for (ui, &row) in unknowns.iter().enumerate() {
-            lambda[row] = sol[ui];
-        }
-        for (p, s) in states.iter().enumerate() {
-            match s {
-                ContactState::SlidingNegative => lambda[2 * p + 1] = mu[p] * lambda[2 * p],
-                ContactState::SlidingPositive => lambda[2 * p + 1] = -mu[p] * lambda[2 * p],
-                _ => {}
-            }
-        }
+        impulses_of(&states, mu, &unknowns, &sol[..k], &mut lambda);
         del.velocity_of(&lambda, &mut vel);
         for (v, l) in vel.iter_mut().zip(&lambda) {
             *v += delta * l;
@@ -218,18 +185,7 @@ pub fn solve_exact(problem: &ContactProblem, tolerance: Real) -> Result<ExactSol
         let lmax = lambda.iter().fold(0.0, |m: Real, v| m.max(v.abs()));
         let tol_l = tolerance * (1.0 + lmax);
         let tol_v = tolerance * (1.0 + qmax + wmax * lmax);
-        let admissible = states.iter().enumerate().all(|(p, s)| {
-            let (ln, lt, wn, wt) = (lambda[2 * p], lambda[2 * p + 1], vel[2 * p], vel[2 * p + 1]);
-            let normal_ok = ln >= -tol_l && wn >= -tol_v;
-            let cone_ok = lt.abs() <= mu[p] * ln + tol_l;
-            normal_ok
-                && cone_ok
-                && match s {
-                    ContactState::Separated | ContactState::Sticking => true,
-                    ContactState::SlidingNegative => wt <= tol_v,
-                    ContactState::SlidingPositive => wt >= -tol_v,
-                }
-        });
+        let admissible = admissible(&states, mu, &lambda, &vel, (tol_l, tol_v));
         if admissible {
             return Ok(ExactSolution {
                 impulses: lambda
@@ -244,6 +200,95 @@ pub fn solve_exact(problem: &ContactProblem, tolerance: Real) -> Result<ExactSol
     }
     Err(LcpError::NoExactSolution {
         combinations: total,
+    })
+}
+
+/// The linear system of one active set into `a` (row-major, `k × k`) and `b`, returning `k`.
+/// Unknowns: `λn` of every touching point, `λt` of every sticking point; equations: `wn = 0`
+/// for touching points, `wt = 0` for sticking points. The column of a sliding point's `λn`
+/// includes its tangent, `λt = ∓μ λn` (`Vec`s: the unknowns' and equations' rows, reused).
+fn active_set_system(
+    states: &[ContactState],
+    w: &faer::Mat<Real>,
+    mu: &[Real],
+    q: &[Real],
+    (unknowns, equations): (&mut Vec<usize>, &mut Vec<usize>),
+    (a, b): (&mut [Real], &mut [Real]),
+) -> usize {
+    unknowns.clear();
+    equations.clear();
+    for (p, s) in states.iter().enumerate() {
+        if *s != ContactState::Separated {
+            unknowns.push(2 * p);
+            equations.push(2 * p);
+        }
+        if *s == ContactState::Sticking {
+            unknowns.push(2 * p + 1);
+            equations.push(2 * p + 1);
+        }
+    }
+    let k = unknowns.len();
+    for (ei, &row) in equations.iter().enumerate() {
+        for (ui, &col) in unknowns.iter().enumerate() {
+            let p = col / 2;
+            let mut v = w[(row, col)];
+            if col % 2 == 0 {
+                match states[p] {
+                    ContactState::SlidingNegative => v += mu[p] * w[(row, col + 1)],
+                    ContactState::SlidingPositive => v -= mu[p] * w[(row, col + 1)],
+                    _ => {}
+                }
+            }
+            a[ei * k + ui] = v;
+        }
+        b[ei] = -q[row];
+    }
+    k
+}
+
+/// Every row's impulse (`lambda`, two rows a point) from the active set's solution `sol` of
+/// its `unknowns`: zero where no unknown, `∓μ λn` on a sliding point's tangent row.
+fn impulses_of(
+    states: &[ContactState],
+    mu: &[Real],
+    unknowns: &[usize],
+    sol: &[Real],
+    lambda: &mut [Real],
+) {
+    lambda.fill(0.0);
+    for (&row, &x) in unknowns.iter().zip(sol) {
+        lambda[row] = x;
+    }
+    for (p, s) in states.iter().enumerate() {
+        match s {
+            ContactState::SlidingNegative => lambda[2 * p + 1] = mu[p] * lambda[2 * p],
+            ContactState::SlidingPositive => lambda[2 * p + 1] = -mu[p] * lambda[2 * p],
+            _ => {}
+        }
+    }
+}
+
+/// Whether impulses `lambda` with velocities `vel` solve the problem in the states assumed,
+/// within `tol_l` in impulse and `tol_v` in velocity: normal impulse and velocity
+/// non-negative, tangent impulse inside the cone, a sliding point moving against its friction.
+fn admissible(
+    states: &[ContactState],
+    mu: &[Real],
+    lambda: &[Real],
+    vel: &[Real],
+    (tol_l, tol_v): (Real, Real),
+) -> bool {
+    states.iter().enumerate().all(|(p, s)| {
+        let (ln, lt, wn, wt) = (lambda[2 * p], lambda[2 * p + 1], vel[2 * p], vel[2 * p + 1]);
+        let normal_ok = ln >= -tol_l && wn >= -tol_v;
+        let cone_ok = lt.abs() <= mu[p] * ln + tol_l;
+        normal_ok
+            && cone_ok
+            && match s {
+                ContactState::Separated | ContactState::Sticking => true,
+                ContactState::SlidingNegative => wt <= tol_v,
+                ContactState::SlidingPositive => wt >= -tol_v,
+            }
     })
 }
 
