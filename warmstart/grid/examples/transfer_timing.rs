@@ -72,7 +72,25 @@ impl WarmStart for Fixed {
     }
 }
 
+/// Calls timed per batch (2 000: each call takes microseconds).
+const REPS: usize = 2000;
+
 fn main() {
+    let world = settled_pile();
+    let (contacts, values) = contact_values(&world);
+    println!(
+        "pile seed 0 after 200 steps: {} bodies, {} contacts, {} islands",
+        world.bodies().len() - 4,
+        contacts.len(),
+        world.last_problems().len()
+    );
+    let grid = time_transfers(&contacts, &values);
+    time_cnn_transfers(&world, &grid, &contacts);
+    time_grid_filter(&world);
+}
+
+/// The thesis pile of seed 0 stepped 200 times with carried impulses.
+fn settled_pile() -> deepcontact_core::World {
     let mut world = scene::pile(0, 100)
         .unwrap()
         .build(WorldSettings::default())
@@ -81,6 +99,12 @@ fn main() {
     for _ in 0..200 {
         world.step(&mut CarriedWarmStart, &mut v, &mut p).unwrap();
     }
+    world
+}
+
+/// The world's contact points and their solved impulses, two channels a point (normal,
+/// tangent).
+fn contact_values(world: &deepcontact_core::World) -> (Vec<Vector>, Vec<f64>) {
     let contacts: Vec<Vector> = world.raw_contacts().iter().map(|c| c.point).collect();
     let solved = world.contacts();
     let values: Vec<f64> = world
@@ -94,59 +118,51 @@ fn main() {
             [i.normal, i.tangent]
         })
         .collect();
-    println!(
-        "pile seed 0 after 200 steps: {} bodies, {} contacts, {} islands",
-        world.bodies().len() - 4,
-        contacts.len(),
-        world.last_problems().len()
-    );
+    (contacts, values)
+}
+
+/// The particle ↔ grid transfers of two channels with each neighbour search, the k-d tree's
+/// build and the bilinear G2P; returns the grid of the values.
+fn time_transfers(contacts: &[Vector], values: &[f64]) -> Vec<f64> {
     let spec = GridSpec::thesis();
-    let n = spec.len();
-    let reps = 2000;
-    let mut grid = vec![0.0; 2 * n];
+    let mut grid = vec![0.0; 2 * spec.len()];
     let mut out = vec![0.0; values.len()];
     let stats = Transfer::new(spec, Kernel::Poly6, 0.5)
         .unwrap()
-        .particles_to_grid(&contacts, &values, 2, &mut grid);
+        .particles_to_grid(contacts, values, 2, &mut grid);
     println!(
         "pairs (contact point, node) within h: {:?}",
         stats.map(|s| s.pairs)
     );
-
     for search in [NeighbourSearch::Exact, NeighbourSearch::KdTree] {
         let mut t = Transfer::new(spec, Kernel::Poly6, 0.5)
             .unwrap()
             .with_search(search);
         t.build_node_tree().unwrap();
         let name = format!("{search:?}");
+        let points = contacts.len();
         time(
-            &format!(
-                "[{name}] P2G 2 channels, {} contact points (+ grid zeroing)",
-                contacts.len()
-            ),
-            reps,
+            &format!("[{name}] P2G 2 channels, {points} contact points (+ grid zeroing)"),
+            REPS,
             || {
                 grid.fill(0.0);
-                t.particles_to_grid(black_box(&contacts), &values, 2, &mut grid)
+                t.particles_to_grid(black_box(contacts), values, 2, &mut grid)
                     .unwrap();
             },
         );
         time(
-            &format!(
-                "[{name}] SPH G2P 2 channels, {} contact points",
-                contacts.len()
-            ),
-            reps,
+            &format!("[{name}] SPH G2P 2 channels, {points} contact points"),
+            REPS,
             || {
-                t.grid_to_particles(black_box(&grid), 2, &contacts, &mut out)
+                t.grid_to_particles(black_box(&grid), 2, contacts, &mut out)
                     .unwrap();
             },
         );
         time(
             &format!("[{name}] fused round trip (P2G + G2P), 2 channels"),
-            reps,
+            REPS,
             || {
-                t.round_trip(black_box(&contacts), &values, 2, &mut out)
+                t.round_trip(black_box(contacts), values, 2, &mut out)
                     .unwrap();
             },
         );
@@ -161,29 +177,32 @@ fn main() {
     let mut b = Transfer::new(spec, Kernel::Poly6, 0.5)
         .unwrap()
         .with_g2p(G2pMethod::Bilinear);
-    time("bilinear G2P 2 channels", reps, || {
-        b.grid_to_particles(black_box(&grid), 2, &contacts, &mut out)
+    time("bilinear G2P 2 channels", REPS, || {
+        b.grid_to_particles(black_box(&grid), 2, contacts, &mut out)
             .unwrap();
     });
+    grid
+}
 
-    // What a CNN provider does around its model: 6 input channels of the world, then the
-    // 2 output channels back onto the contact points.
+/// What a CNN provider does around its model: 6 input channels of the world, then the 2
+/// output channels (`grid`) back onto the contact points.
+fn time_cnn_transfers(world: &deepcontact_core::World, grid: &[f64], contacts: &[Vector]) {
     let layout = GridLayout::thesis();
     let mut enc = GridEncoder::new(layout.clone()).unwrap();
     let mut input = vec![0.0; layout.input_len()];
     let mut imp = vec![Impulse::ZERO; contacts.len()];
     let e = time(
         "encode_world: P2G 6 channels (100 bodies + contacts + walls)",
-        reps,
+        REPS,
         || {
-            enc.encode_world(black_box(&world), &mut input).unwrap();
+            enc.encode_world(black_box(world), &mut input).unwrap();
         },
     );
     let d = time(
         "decode: SPH G2P 2 channels to the contact points",
-        reps,
+        REPS,
         || {
-            enc.decode(black_box(&grid), &contacts, &mut imp).unwrap();
+            enc.decode(black_box(grid), contacts, &mut imp).unwrap();
         },
     );
     println!(
@@ -191,35 +210,33 @@ fn main() {
         "CNN provider transfer total (encode + decode)",
         e + d
     );
+}
 
-    // The grid provider's filter on every island of the last step (inner = fixed values).
+/// The grid provider's filter on every island of the last step (inner = fixed values).
+fn time_grid_filter(world: &deepcontact_core::World) {
     let problems = world.last_problems();
-    let mut starts: Vec<Vec<Impulse>> = Vec::new();
-    for pr in problems {
-        starts.push(pr.points.iter().map(|_| Impulse::new(1.0, 0.1)).collect());
-    }
-    let mut filtered: Vec<GridFiltered> = starts
+    let mut filtered: Vec<GridFiltered> = problems
         .iter()
-        .map(|s| {
-            GridFiltered::new(Box::new(Fixed(s.clone())), GridFilterConfig::default()).unwrap()
+        .map(|pr| {
+            let start = pr.points.iter().map(|_| Impulse::new(1.0, 0.1)).collect();
+            GridFiltered::new(Box::new(Fixed(start)), GridFilterConfig::default()).unwrap()
         })
-        .collect();
-    let zero: Vec<Vec<Impulse>> = problems
-        .iter()
-        .map(|pr| vec![Impulse::ZERO; pr.points.len()])
         .collect();
     let none: Vec<Vec<Option<Impulse>>> = problems
         .iter()
         .map(|pr| vec![None; pr.points.len()])
         .collect();
-    let mut outs = zero.clone();
+    let mut outs: Vec<Vec<Impulse>> = problems
+        .iter()
+        .map(|pr| vec![Impulse::ZERO; pr.points.len()])
+        .collect();
     time(
         "grid provider filter, all islands of one step (inner excluded)",
-        reps,
+        REPS,
         || {
             for (k, pr) in problems.iter().enumerate() {
                 let ctx = WarmStartContext::new(pr, &none[k], 0, 0.01).with_world(
-                    &world,
+                    world,
                     k,
                     problems.len(),
                 );
