@@ -65,8 +65,8 @@ pub struct EqualAccuracy {
     pub step_vs_builtin: Option<f64>,
 }
 
-/// Builtin's (cap, residual, step ms) at each of its caps in `scene`, in cap order: the rows of
-/// the scene's first solver.
+/// Builtin's rows in `scene` with their caps, in cap order: the rows of the scene's first
+/// solver, one per cap.
 fn builtin_curve<'a>(
     rows: &'a [SuiteRow],
     scene: &str,
