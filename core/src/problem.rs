@@ -296,8 +296,9 @@ impl ContactProblem {
     /// Adds a point to the manifold begun by the last [`Self::begin_manifold`], deriving
     /// anchors, effective masses and the restitution bias; returns the point's index.
     ///
-    /// Checked here, so that a mistake is reported where it is made: a manifold was begun and
-    /// has fewer than 2 points, both bodies exist and differ, the values are finite, the
+    /// Checked here, so that a mistake is reported where it is made: a manifold was begun, is
+    /// still open (the last range of [`Self::manifolds`] ends at this point: one edited by hand
+    /// is refused) and has fewer than 2 points, both bodies exist and differ, the values are finite, the
     /// normal has unit length (within 1e-3), friction and restitution are ≥ 0. The direction
     /// of the normal cannot be checked (a wall's centre says nothing about its side): it must
     /// point from A to B.
@@ -306,6 +307,12 @@ impl ContactProblem {
         let bad = |why: &str| Err(CoreError::InvalidProblem(format!("point {index}: {why}")));
         match self.manifolds.last() {
             None => return bad("add_point before begin_manifold"),
+            Some(&(start, end)) if start > end || end as usize != index => {
+                return bad(&format!(
+                    "the last manifold's range {start}..{end} does not end at this point \
+                     (edited by hand? call begin_manifold)"
+                ));
+            }
             Some(&(start, end)) if end - start >= 2 => {
                 return bad("a manifold has at most 2 points (call begin_manifold)");
             }

@@ -410,3 +410,49 @@ fn regression_rescue_left_a_cycling_island_above_its_target() {
     assert!(stats.finish_newtons >= 1, "{stats:?}");
     assert!(after < 1e-3, "the rounds left the island at {after:e}");
 }
+
+/// cargo-fuzz `solve_problem` (crash-f5967ebb…): `add_point` after the last manifold's range
+/// was edited by hand to end before it starts subtracted with overflow (a panic where overflow
+/// is checked, elsewhere the wrong error); an edited range that started earlier, such as
+/// `(0, 0)` after one point, took the new point in and ran over the points before it. The open
+/// manifold must now end at the new point.
+#[test]
+fn regression_add_point_overflowed_on_an_edited_manifold_range() {
+    let mut p = ContactProblem::new();
+    let ground = p.add_body(body(0.0, -0.5, 0.0, 0.0, Vector::zeros()));
+    let ball = p.add_body(body(0.0, 0.5, 1.0, 1.0, Vector::zeros()));
+    let (point, up) = (Vector::new(0.0, 0.0), Vector::new(0.0, 1.0));
+    add_contact(&mut p, ground, ball, point, up, 0.5);
+    let desc = PointDesc {
+        id: ContactId {
+            body_a: ground,
+            body_b: ball,
+            feature_a: 1,
+            feature_b: 0,
+        },
+        body_a: ground,
+        body_b: ball,
+        point,
+        normal: up,
+        separation: -0.01,
+        friction: 0.5,
+        restitution: 0.0,
+        restitution_threshold: 1.0,
+    };
+    for edited in [(3, 1), (0, 0), (1, 2)] {
+        let mut q = p.clone();
+        q.manifolds.push(edited);
+        let expected = format!(
+            "range {}..{} does not end at this point",
+            edited.0, edited.1
+        );
+        match q.add_point(&desc) {
+            Err(CoreError::InvalidProblem(why)) if why.contains(&expected) => {}
+            other => panic!("{edited:?}: expected a refusal naming the range, got {other:?}"),
+        }
+        assert_eq!(q.points.len(), 1, "{edited:?}: no point added");
+    }
+    // The manifold begun as the API asks still takes its point.
+    p.begin_manifold();
+    assert_eq!(p.add_point(&desc).expect("an open manifold"), 1);
+}
