@@ -98,6 +98,12 @@ fn main() {
             std::process::exit(2);
         }
     };
+    // On one core each trip would wait for the scheduler to switch threads: no figure, hours.
+    let cores = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
+    if cores < 2 {
+        eprintln!("handover: needs two cores, this process may use {cores}");
+        std::process::exit(2);
+    }
     let mut ns = Vec::with_capacity(o.runs);
     for k in 0..o.runs {
         if k > 0 {
