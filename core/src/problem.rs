@@ -297,11 +297,11 @@ impl ContactProblem {
     /// anchors, effective masses and the restitution bias; returns the point's index.
     ///
     /// Checked here, so that a mistake is reported where it is made: a manifold was begun, is
-    /// still open (the last range of [`Self::manifolds`] ends at this point: one edited by hand
-    /// is refused) and has fewer than 2 points, both bodies exist and differ, the values are finite, the
-    /// normal has unit length (within 1e-3), friction and restitution are ≥ 0. The direction
-    /// of the normal cannot be checked (a wall's centre says nothing about its side): it must
-    /// point from A to B.
+    /// still open (the last range of [`Self::manifolds`] ends at this point: one edited by
+    /// hand is refused) and has fewer than 2 points, both bodies exist and differ, the values
+    /// are finite, the normal has unit length (within 1e-3), friction and restitution are ≥ 0.
+    /// The direction of the normal cannot be checked (a wall's centre says nothing about its
+    /// side): it must point from A to B.
     pub fn add_point(&mut self, desc: &PointDesc) -> Result<u32, CoreError> {
         let index = self.points.len();
         let bad = |why: &str| Err(CoreError::InvalidProblem(format!("point {index}: {why}")));
